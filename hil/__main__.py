@@ -1,0 +1,5 @@
+"""Allow `python -m hil`."""
+
+from hil.cli import main
+
+raise SystemExit(main())

@@ -1,0 +1,3 @@
+"""Adapters: interfaces (typing.Protocol) and backends (sim, log, ros) for the world."""
+
+__all__: list[str] = []

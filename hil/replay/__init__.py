@@ -1,0 +1,3 @@
+"""Recording (rosbag2 MCAP), replay, regression checks and Rerun export."""
+
+__all__: list[str] = []
