@@ -35,7 +35,7 @@ COMMANDS: dict[str, str] = {
 
 
 def _load(module_name: str) -> CommandModule:
-    module: CommandModule = importlib.import_module(f"hil.commands.{module_name}")  # type: ignore[assignment]
+    module: CommandModule = importlib.import_module(f"hil.commands.{module_name}")
     return module
 
 

@@ -41,7 +41,7 @@ def _extras() -> str:
 
 def ensure_venv() -> None:
     """Create `.venv` and install the package with pinned dependencies, if stale."""
-    if sys.version_info < (3, 11):
+    if sys.version_info < (3, 11):  # noqa: UP036 - this script may be run by an older python3
         sys.exit(f"hil needs Python 3.11 or newer, this is {platform.python_version()}")
     wanted = hashlib.sha256((ROOT / "pyproject.toml").read_bytes()).hexdigest()
     wanted += " " + _extras()
@@ -50,9 +50,16 @@ def ensure_venv() -> None:
     if not _venv_bin("python").exists():
         print(f"[dev] creating virtual environment in {VENV}", flush=True)
         venv.EnvBuilder(with_pip=True).create(VENV)
-    print(f"[dev] installing hil{_extras()[1:]} with pinned dependencies", flush=True)
+    print(f"[dev] installing hil{_extras()[1:]} with pinned dependencies (about a minute)",
+          flush=True)
     pip = [str(_venv_bin("python")), "-m", "pip", "--disable-pip-version-check"]
-    subprocess.run([*pip, "install", "-q", "-e", _extras()], cwd=ROOT, check=True)
+    log = VENV / "pip-install.log"
+    with log.open("w") as out:
+        status = subprocess.call([*pip, "install", "-e", _extras()], cwd=ROOT, stdout=out,
+                                 stderr=subprocess.STDOUT)
+    if status != 0:
+        tail = log.read_text().splitlines()[-30:]
+        sys.exit("\n".join(["[dev] pip install failed; last lines of " + str(log), *tail]))
     STAMP.write_text(wanted + "\n")
 
 

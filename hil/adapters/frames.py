@@ -1,0 +1,95 @@
+"""The transform from the lab's motion-capture frames to the arena frame.
+
+The lab's world is NED (x north, y east, z down) and the mocap rigid body is
+FRD; the paper's arena is a planar frame with z down as well, so both share the
+handedness of the heading. The arena is the lab world rotated by `yaw_rad` about
+z and shifted to `origin`; the vessel's body origin sits at `body_offset` in the
+mocap rigid body's frame, rotated by `body_yaw_rad`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from hil.adapters.samples import Frame, PoseSample, SampleError
+from hil.geometry import wrap_angle
+
+
+def yaw_from_quaternion(x: float, y: float, z: float, w: float) -> float:
+    """Return the yaw (rad) of a unit quaternion given in ROS order (x, y, z, w).
+
+    Raises:
+        SampleError: If the quaternion is not finite or far from unit length.
+    """
+    norm = math.sqrt(x * x + y * y + z * z + w * w)
+    if not math.isfinite(norm) or abs(norm - 1.0) > 1e-3:
+        raise SampleError(f"quaternion is not a unit quaternion: {(x, y, z, w)!r}")
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def quaternion_from_yaw(yaw_rad: float) -> tuple[float, float, float, float]:
+    """Return the unit quaternion (x, y, z, w) of a pure rotation by `yaw_rad` about z."""
+    return (0.0, 0.0, math.sin(yaw_rad / 2.0), math.cos(yaw_rad / 2.0))
+
+
+@dataclass(frozen=True, slots=True)
+class ArenaTransform:
+    """Where the arena lies in the lab's NED world, and the vessel in the mocap body.
+
+    Attributes:
+        origin_north_m: Arena origin's north coordinate in the lab frame (m).
+        origin_east_m: Arena origin's east coordinate in the lab frame (m).
+        yaw_rad: Rotation of the arena's x axis from north, about down (rad).
+        body_offset_x_m: Vessel body origin in the mocap body frame, forward (m).
+        body_offset_y_m: Vessel body origin in the mocap body frame, starboard (m).
+        body_yaw_rad: Heading of the vessel body relative to the mocap body (rad).
+    """
+
+    origin_north_m: float = 0.0
+    origin_east_m: float = 0.0
+    yaw_rad: float = 0.0
+    body_offset_x_m: float = 0.0
+    body_offset_y_m: float = 0.0
+    body_yaw_rad: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in self.__dataclass_fields__:
+            if not math.isfinite(getattr(self, name)):
+                raise SampleError(f"arena transform field {name!r} is not finite")
+
+    def to_arena(self, pose: PoseSample) -> PoseSample:
+        """Map a mocap pose in the lab's NED frame to the vessel's pose in the arena."""
+        if pose.frame is Frame.ARENA:
+            return pose
+        if pose.frame is not Frame.LAB_NED:
+            raise SampleError(f"cannot map a pose in frame {pose.frame.value!r} to the arena")
+        c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
+        north = pose.x_m + c * self.body_offset_x_m - s * self.body_offset_y_m
+        east = pose.y_m + s * self.body_offset_x_m + c * self.body_offset_y_m
+        dn, de = north - self.origin_north_m, east - self.origin_east_m
+        ca, sa = math.cos(self.yaw_rad), math.sin(self.yaw_rad)
+        return PoseSample(
+            t_ns=pose.t_ns,
+            x_m=ca * dn + sa * de,
+            y_m=-sa * dn + ca * de,
+            yaw_rad=wrap_angle(pose.yaw_rad + self.body_yaw_rad - self.yaw_rad),
+            frame=Frame.ARENA,
+        )
+
+    def to_lab(self, pose: PoseSample) -> PoseSample:
+        """Map a vessel pose in the arena to the mocap body's pose in the lab (inverse)."""
+        if pose.frame is not Frame.ARENA:
+            raise SampleError(f"expected an arena pose, got frame {pose.frame.value!r}")
+        ca, sa = math.cos(self.yaw_rad), math.sin(self.yaw_rad)
+        north = self.origin_north_m + ca * pose.x_m - sa * pose.y_m
+        east = self.origin_east_m + sa * pose.x_m + ca * pose.y_m
+        yaw = wrap_angle(pose.yaw_rad + self.yaw_rad - self.body_yaw_rad)
+        c, s = math.cos(yaw), math.sin(yaw)
+        return PoseSample(
+            t_ns=pose.t_ns,
+            x_m=north - (c * self.body_offset_x_m - s * self.body_offset_y_m),
+            y_m=east - (s * self.body_offset_x_m + c * self.body_offset_y_m),
+            yaw_rad=yaw,
+            frame=Frame.LAB_NED,
+        )
