@@ -1,0 +1,356 @@
+"""The ROS 2 backend: rclpy nodes on the lab's topics (VESSEL.md).
+
+rclpy is imported only when a :class:`RosWorld` opens, so the rest of `hil`
+works on machines without ROS, and on the vessel's aarch64 computer the system's
+rclpy serves (the PyPI wheels are x86_64 only).
+
+Conversions between ROS messages and samples are plain functions over message
+attributes, so they serve rclpy messages and `rosbags` messages alike.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import threading
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any
+
+from hil.adapters.frames import ArenaTransform, quaternion_from_yaw, yaw_from_quaternion
+from hil.adapters.samples import Frame, ImuSample, PoseSample, SampleError, ThrusterCommand
+
+NS_PER_S = 1_000_000_000
+
+
+class RosBackendError(RuntimeError):
+    """The ROS 2 backend cannot start or lost its link."""
+
+
+@dataclass(frozen=True, slots=True)
+class RosTopics:
+    """Topic names; defaults are the lab's (VESSEL.md)."""
+
+    pose: str = "/voyager/measurement/pose"
+    imu: str = "/voyager/measurement/imu"
+    tunnel: str = "/voyager/thruster/tunnel/command"
+    port: str = "/voyager/thruster/port/command"
+    starboard: str = "/voyager/thruster/starboard/command"
+
+
+@dataclass(frozen=True, slots=True)
+class RosConfig:
+    """How the stack talks to the vessel over ROS 2.
+
+    Attributes:
+        topics: Topic names.
+        transform: Lab NED world and mocap body to the arena frame and body origin.
+        qos_depth: History depth of every subscription and publisher.
+        best_effort_sensors: Subscribe to pose and IMU with best-effort reliability.
+        node_name: Name of the stack's node.
+        use_sim_time: Follow `/clock` instead of wall time (tests, simulated vessel).
+        pose_frame_id: Expected `header.frame_id` of poses; others are rejected.
+        domain_id: ROS_DOMAIN_ID for this world's context; None takes the environment's.
+    """
+
+    topics: RosTopics = field(default_factory=RosTopics)
+    transform: ArenaTransform = field(default_factory=ArenaTransform)
+    qos_depth: int = 10
+    best_effort_sensors: bool = False
+    node_name: str = "hil_stack"
+    use_sim_time: bool = False
+    pose_frame_id: str = "world_ned"
+    domain_id: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.qos_depth < 1:
+            raise ValueError(f"qos_depth must be at least 1, got {self.qos_depth!r}")
+
+
+def stamp_to_ns(stamp: Any) -> int:
+    """Return a builtin_interfaces/Time as integer nanoseconds."""
+    return int(stamp.sec) * NS_PER_S + int(stamp.nanosec)
+
+
+def fill_stamp(stamp: Any, t_ns: int) -> None:
+    """Write `t_ns` into a builtin_interfaces/Time in place."""
+    stamp.sec, stamp.nanosec = divmod(int(t_ns), NS_PER_S)
+
+
+def pose_from_msg(msg: Any, transform: ArenaTransform) -> PoseSample:
+    """Convert a PoseWithCovarianceStamped in the lab's NED world to an arena pose.
+
+    Raises:
+        SampleError: On non-finite values or a non-unit orientation.
+    """
+    pose = msg.pose.pose
+    q = pose.orientation
+    yaw = yaw_from_quaternion(float(q.x), float(q.y), float(q.z), float(q.w))
+    lab = PoseSample(stamp_to_ns(msg.header.stamp), float(pose.position.x),
+                     float(pose.position.y), yaw, Frame.LAB_NED)
+    return transform.to_arena(lab)
+
+
+def fill_pose_msg(msg: Any, pose: PoseSample, transform: ArenaTransform,
+                  frame_id: str = "world_ned") -> None:
+    """Fill a PoseWithCovarianceStamped with an arena pose, expressed in the lab frame."""
+    lab = transform.to_lab(pose)
+    fill_stamp(msg.header.stamp, lab.t_ns)
+    msg.header.frame_id = frame_id
+    msg.pose.pose.position.x = lab.x_m
+    msg.pose.pose.position.y = lab.y_m
+    msg.pose.pose.position.z = 0.0
+    o = msg.pose.pose.orientation
+    o.x, o.y, o.z, o.w = quaternion_from_yaw(lab.yaw_rad)
+
+
+def imu_from_msg(msg: Any) -> ImuSample:
+    """Convert a sensor_msgs/Imu to an IMU sample (planar specific force and yaw rate)."""
+    return ImuSample(stamp_to_ns(msg.header.stamp), float(msg.linear_acceleration.x),
+                     float(msg.linear_acceleration.y), float(msg.angular_velocity.z))
+
+
+def fill_imu_msg(msg: Any, imu: ImuSample, frame_id: str = "voyager/imu_link") -> None:
+    """Fill a sensor_msgs/Imu from an IMU sample; orientation marked as unknown."""
+    fill_stamp(msg.header.stamp, imu.t_ns)
+    msg.header.frame_id = frame_id
+    msg.linear_acceleration.x = imu.accel_x_mps2
+    msg.linear_acceleration.y = imu.accel_y_mps2
+    msg.angular_velocity.z = imu.yaw_rate_radps
+    # REP 145: covariance[0] = -1 says the orientation is not provided.
+    msg.orientation_covariance[0] = -1.0
+
+
+def thruster_wrench_components(command: ThrusterCommand) -> dict[str, tuple[float, float]]:
+    """Return the normalized (force.x, force.y) the lab's driver expects per thruster.
+
+    The tunnel uses force.x only; each azimuth takes its thrust as a vector in the
+    body frame, so the angle is carried by the direction of (force.x, force.y).
+    """
+    return {
+        "tunnel": (command.tunnel, 0.0),
+        "port": (command.port * math.cos(command.port_angle_rad),
+                 command.port * math.sin(command.port_angle_rad)),
+        "starboard": (command.starboard * math.cos(command.starboard_angle_rad),
+                      command.starboard * math.sin(command.starboard_angle_rad)),
+    }
+
+
+def thruster_command_from_components(t_ns: int, tunnel_x: float, port: tuple[float, float],
+                                     starboard: tuple[float, float],
+                                     previous: ThrusterCommand | None = None) -> ThrusterCommand:
+    """Rebuild a command from the lab's wrench components (inverse of the above).
+
+    A zero azimuth vector carries no angle; the previous angle (or the reference
+    angle) is kept then.
+    """
+    fallback = previous or ThrusterCommand.zero(t_ns)
+
+    def polar(xy: tuple[float, float], angle_if_zero: float) -> tuple[float, float]:
+        magnitude = math.hypot(*xy)
+        if magnitude < 1e-12:
+            return 0.0, angle_if_zero
+        return min(magnitude, 1.0), math.atan2(xy[1], xy[0])
+
+    port_thrust, port_angle = polar(port, fallback.port_angle_rad)
+    stbd_thrust, stbd_angle = polar(starboard, fallback.starboard_angle_rad)
+    return ThrusterCommand(t_ns, max(-1.0, min(1.0, tunnel_x)), port_thrust, stbd_thrust,
+                           port_angle, stbd_angle)
+
+
+class _Inbox:
+    """A thread-safe queue of samples from a subscription callback, with counters."""
+
+    def __init__(self, maxlen: int = 10_000) -> None:
+        self._items: deque[Any] = deque(maxlen=maxlen)
+        self._lock = threading.Lock()
+        self.rejected = 0
+
+    def put(self, item: Any) -> None:
+        with self._lock:
+            self._items.append(item)
+
+    def reject(self) -> None:
+        with self._lock:
+            self.rejected += 1
+
+    def drain(self) -> list[Any]:
+        with self._lock:
+            items = list(self._items)
+            self._items.clear()
+        return items
+
+
+class RosPoseSource:
+    """Pose samples from the mocap topic, mapped to the arena frame."""
+
+    def __init__(self, inbox: _Inbox) -> None:
+        self._inbox = inbox
+
+    @property
+    def rejected(self) -> int:
+        """Number of pose messages refused (non-finite, bad quaternion, wrong frame)."""
+        return self._inbox.rejected
+
+    def poll(self) -> list[PoseSample]:
+        """Return the poses received since the last call, oldest first."""
+        return sorted(self._inbox.drain(), key=lambda s: s.t_ns)
+
+
+class RosImuSource:
+    """IMU samples from the IMU topic."""
+
+    def __init__(self, inbox: _Inbox) -> None:
+        self._inbox = inbox
+
+    @property
+    def rejected(self) -> int:
+        """Number of IMU messages refused (non-finite values)."""
+        return self._inbox.rejected
+
+    def poll(self) -> list[ImuSample]:
+        """Return the IMU samples received since the last call, oldest first."""
+        return sorted(self._inbox.drain(), key=lambda s: s.t_ns)
+
+
+class RosThrusterSink:
+    """Publishes thruster commands as the lab's three Wrench topics."""
+
+    def __init__(self, publishers: dict[str, Any], wrench_type: Any) -> None:
+        self._publishers = publishers
+        self._wrench_type = wrench_type
+
+    def send(self, command: ThrusterCommand) -> None:
+        """Publish one command on the tunnel, port and starboard topics."""
+        for name, (fx, fy) in thruster_wrench_components(command).items():
+            msg = self._wrench_type()
+            msg.force.x, msg.force.y = fx, fy
+            self._publishers[name].publish(msg)
+
+
+class RosClock:
+    """The node's clock: wall time, or `/clock` when `use_sim_time` is set."""
+
+    def __init__(self, node: Any, context: Any) -> None:
+        self._node = node
+        self._context = context
+
+    def now_ns(self) -> int:
+        """Return the node clock's time (ns)."""
+        return int(self._node.get_clock().now().nanoseconds)
+
+    def sleep_until(self, t_ns: int) -> None:
+        """Sleep on the node clock until `t_ns` (follows `/clock` in sim time)."""
+        from rclpy.time import Time
+
+        clock = self._node.get_clock()
+        if t_ns > self.now_ns():
+            clock.sleep_until(Time(nanoseconds=int(t_ns), clock_type=clock.clock_type),
+                              context=self._context)
+
+
+class RosWorld:
+    """The stack's view of the vessel over ROS 2: pose, IMU, thrusters and the clock.
+
+    Use as a context manager; it owns its own rclpy context and executor thread,
+    so several can coexist in one process (tests).
+
+    Args:
+        config: Topics, QoS, frames and clock settings.
+    """
+
+    def __init__(self, config: RosConfig | None = None) -> None:
+        self.config = config or RosConfig()
+        self._pose_inbox = _Inbox()
+        self._imu_inbox = _Inbox()
+        self._context: Any = None
+        self._node: Any = None
+        self._executor: Any = None
+        self._thread: threading.Thread | None = None
+        self.pose_source = RosPoseSource(self._pose_inbox)
+        self.imu_source = RosImuSource(self._imu_inbox)
+        self.thruster_sink: RosThrusterSink | None = None
+        self.clock: RosClock | None = None
+
+    def open(self) -> RosWorld:
+        """Start the node, its subscriptions and publishers, and the executor thread.
+
+        Raises:
+            RosBackendError: If rclpy or the message packages cannot be imported.
+        """
+        try:
+            import rclpy
+            from geometry_msgs.msg import PoseWithCovarianceStamped, Wrench
+            from rclpy.executors import SingleThreadedExecutor
+            from rclpy.parameter import Parameter
+            from rclpy.qos import QoSProfile, ReliabilityPolicy
+            from sensor_msgs.msg import Imu
+        except ImportError as err:
+            raise RosBackendError(
+                "the ROS backend needs rclpy and the geometry_msgs/sensor_msgs packages: "
+                "install the 'ros' extra (x86_64) or source a ROS 2 Jazzy install "
+                f"({err})") from err
+        cfg = self.config
+        self._context = rclpy.Context()
+        if cfg.domain_id is None:
+            rclpy.init(context=self._context)
+        else:
+            rclpy.init(context=self._context, domain_id=cfg.domain_id)
+        overrides = [Parameter("use_sim_time", Parameter.Type.BOOL, cfg.use_sim_time)]
+        self._node = rclpy.create_node(cfg.node_name, context=self._context,
+                                       parameter_overrides=overrides)
+        sensor_qos = QoSProfile(depth=cfg.qos_depth, reliability=(
+            ReliabilityPolicy.BEST_EFFORT if cfg.best_effort_sensors
+            else ReliabilityPolicy.RELIABLE))
+        self._node.create_subscription(PoseWithCovarianceStamped, cfg.topics.pose,
+                                       self._on_pose, sensor_qos)
+        self._node.create_subscription(Imu, cfg.topics.imu, self._on_imu, sensor_qos)
+        publishers = {name: self._node.create_publisher(Wrench, getattr(cfg.topics, name),
+                                                        cfg.qos_depth)
+                      for name in ("tunnel", "port", "starboard")}
+        self.thruster_sink = RosThrusterSink(publishers, Wrench)
+        self.clock = RosClock(self._node, self._context)
+        self._executor = SingleThreadedExecutor(context=self._context)
+        self._executor.add_node(self._node)
+        self._thread = threading.Thread(target=self._spin, name="hil-ros", daemon=True)
+        self._thread.start()
+        return self
+
+    def _spin(self) -> None:
+        from rclpy.executors import ExternalShutdownException
+
+        with contextlib.suppress(ExternalShutdownException):
+            self._executor.spin()
+
+    def _on_pose(self, msg: Any) -> None:
+        if msg.header.frame_id and msg.header.frame_id != self.config.pose_frame_id:
+            self._pose_inbox.reject()
+            return
+        try:
+            self._pose_inbox.put(pose_from_msg(msg, self.config.transform))
+        except SampleError:
+            self._pose_inbox.reject()
+
+    def _on_imu(self, msg: Any) -> None:
+        try:
+            self._imu_inbox.put(imu_from_msg(msg))
+        except SampleError:
+            self._imu_inbox.reject()
+
+    def close(self) -> None:
+        """Stop the executor, destroy the node and shut the context down."""
+        if self._context is None:
+            return
+        self._executor.shutdown()
+        self._node.destroy_node()
+        if self._context.ok():
+            self._context.try_shutdown()
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+        self._context = None
+
+    def __enter__(self) -> RosWorld:
+        return self.open()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
