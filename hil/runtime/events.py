@@ -1,0 +1,36 @@
+"""The closed set of runtime events; each has one defined behaviour."""
+
+from __future__ import annotations
+
+import enum
+
+
+class EventCode(enum.Enum):
+    """Closed set of runtime events, each with a defined behaviour."""
+
+    CONTROLLER_READY = "controller_ready"
+    """A (re-)synthesized controller was swapped in."""
+    SYNTHESIS_FAILED = "synthesis_failed"
+    """No controller for the new layout: the previous one is kept if still valid, else stop."""
+    SYNTHESIS_OVERRUN = "synthesis_overrun"
+    """Synthesis slower than its period: the last controller stays in charge."""
+    NOT_WINNING = "not_winning"
+    """The estimate is outside the winning set: the vessel is stopped (nu_ref = 0)."""
+    NO_CONTROLLER = "no_controller"
+    """No valid controller: the vessel is stopped (nu_ref = 0)."""
+    POSE_LOST = "pose_lost"
+    """Pose stale beyond the timeout: thrusters to zero until it is back."""
+    POSE_BACK = "pose_back"
+    """Pose fresh again: control resumes."""
+    SAMPLE_REJECTED = "sample_rejected"
+    """A sample was refused (non-finite, out of range, out of order, gated)."""
+    THRUSTER_FAILURE = "thruster_failure"
+    """A thruster command could not be delivered."""
+    TARGET_REACHED = "target_reached"
+    """The estimate entered the target set: holding position."""
+    DOCKED = "docked"
+    """The vessel held the target for the required time: the run ends."""
+    TIMEOUT = "timeout"
+    """The run's time limit passed before docking."""
+    STOPPED = "stopped"
+    """The run was stopped (signal, fatal fault)."""

@@ -1,0 +1,415 @@
+"""The control loop: one stack, any world.
+
+Each tick (20 Hz by default) the loop drains the pose and IMU feeds into the
+observer, watches the obstacle feed and the re-synthesis worker, takes a
+symbolic decision every `decision_period_s`, runs the velocity controller and
+the allocator, sends the thruster command and records all of it. Faults have
+one defined behaviour each (:class:`hil.runtime.events.EventCode`).
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hil.adapters.interfaces import (
+    Clock,
+    ImuSource,
+    ObstacleSource,
+    PoseSource,
+    ThrusterSink,
+    ThrusterSinkError,
+)
+from hil.adapters.samples import ObstacleLayout, ThrusterCommand
+from hil.replay.records import Decision, EventLevel
+from hil.runtime.events import EventCode
+from hil.runtime.resynthesis import Resynthesizer
+from hil.runtime.stack import Allocator, Observer, RunLog, SymbolicController, VelocityController
+
+FloatArray = NDArray[np.float64]
+NS_PER_S = 1_000_000_000
+
+
+class Mode(enum.Enum):
+    """What the loop is doing."""
+
+    WAITING = "waiting"
+    """No controller yet: thrusters at zero."""
+    RUNNING = "running"
+    """Following the symbolic controller."""
+    HOLD = "hold"
+    """Pose lost: thrusters at zero until it is back."""
+    AT_TARGET = "at_target"
+    """In the target set: holding position with a zero velocity reference."""
+    DOCKED = "docked"
+    """Held the target long enough: the run is over."""
+    STOPPED = "stopped"
+    """Stopped for good (timeout, fatal fault, signal)."""
+
+
+@dataclass(frozen=True, slots=True)
+class LoopConfig:
+    """Timing and fault thresholds of the loop.
+
+    Attributes:
+        loop_hz: Rate of the low-level loop (Hz); 20 Hz as on the vessel.
+        decision_period_s: Period of symbolic decisions, the abstraction's tau (s).
+        resynthesis_period_s: Re-synthesize on this timer as well as on obstacle
+            changes (s); None for changes only.
+        pose_timeout_s: A pose older than this puts the loop on hold (s).
+        dock_hold_s: Time to stay in the target before the run counts as docked (s).
+        max_duration_s: The run stops with a timeout after this long (s).
+        max_thruster_failures: Consecutive delivery failures before stopping.
+    """
+
+    loop_hz: float = 20.0
+    decision_period_s: float = 2.0
+    resynthesis_period_s: float | None = 2.0
+    pose_timeout_s: float = 0.5
+    dock_hold_s: float = 4.0
+    max_duration_s: float = 600.0
+    max_thruster_failures: int = 20
+
+    def __post_init__(self) -> None:
+        for name in ("loop_hz", "decision_period_s", "pose_timeout_s", "max_duration_s"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"loop config {name!r} must be positive, got {value!r}")
+        if self.dock_hold_s < 0:
+            raise ValueError(f"loop config 'dock_hold_s' must be >= 0, got {self.dock_hold_s!r}")
+        if self.resynthesis_period_s is not None and not self.resynthesis_period_s > 0:
+            raise ValueError("loop config 'resynthesis_period_s' must be positive or None, "
+                             f"got {self.resynthesis_period_s!r}")
+
+    @property
+    def period_ns(self) -> int:
+        """Loop period (ns)."""
+        return round(NS_PER_S / self.loop_hz)
+
+
+@dataclass(frozen=True, slots=True)
+class World:
+    """Everything the stack reads and writes, from one backend."""
+
+    clock: Clock
+    pose: PoseSource
+    imu: ImuSource
+    obstacles: ObstacleSource
+    thrusters: ThrusterSink
+
+
+@dataclass
+class RunStats:
+    """Counters and time series the loop keeps for the run's summary.
+
+    Series are time-major lists, one row per tick: `t_ns`, `eta_hat` (3,),
+    `nu_hat` (3,), `nu_ref` (3,).
+    """
+
+    decisions: int = 0
+    resyntheses: int = 0
+    synthesis_seconds: list[float] = field(default_factory=list)
+    failed_syntheses: int = 0
+    rejected_samples: int = 0
+    pose_losses: int = 0
+    thruster_failures: int = 0
+    not_winning_decisions: int = 0
+    target_reached_ns: int | None = None
+    docked_ns: int | None = None
+    end_reason: str = ""
+    t_ns: list[int] = field(default_factory=list)
+    eta_hat: list[FloatArray] = field(default_factory=list)
+    nu_hat: list[FloatArray] = field(default_factory=list)
+    nu_ref: list[FloatArray] = field(default_factory=list)
+
+
+def layout_covers(old: ObstacleLayout, new: ObstacleLayout) -> bool:
+    """Whether every obstacle of `new` lies inside some obstacle of `old`.
+
+    Then a controller synthesized for `old` avoids `new` as well and stays valid.
+    """
+    return all(any(o.x_min_m <= n.x_min_m and n.x_max_m <= o.x_max_m
+                   and o.y_min_m <= n.y_min_m and n.y_max_m <= o.y_max_m
+                   for o in old.obstacles) for n in new.obstacles)
+
+
+class Runtime:
+    """Runs the stack against a world until docked, stopped or timed out.
+
+    Args:
+        world: Clock and adapters of one backend.
+        observer: State observer.
+        velocity: Velocity controller.
+        allocator: Thrust allocator.
+        resynthesizer: Worker that turns obstacle layouts into controllers.
+        select: The paper's selection among safe inputs: (safe (k, 3), previous (3,)) ->
+            index into the safe rows.
+        log: Where everything is recorded.
+        config: Timing and thresholds.
+        scenario_hash: Identifies the scenario in every decision record.
+    """
+
+    def __init__(self, world: World, observer: Observer, velocity: VelocityController,
+                 allocator: Allocator, resynthesizer: Resynthesizer[SymbolicController],
+                 select: Callable[[FloatArray, FloatArray], int], log: RunLog,
+                 config: LoopConfig | None = None, scenario_hash: str = "") -> None:
+        self.world = world
+        self.observer = observer
+        self.velocity = velocity
+        self.allocator = allocator
+        self.resynthesizer = resynthesizer
+        self.select = select
+        self.log = log
+        self.config = config or LoopConfig()
+        self.scenario_hash = scenario_hash
+        self.stats = RunStats()
+        self.mode = Mode.WAITING
+        self.controller: SymbolicController | None = None
+        self.controller_version = 0
+        self._controller_layout: ObstacleLayout | None = None
+        self._submitted_layout: ObstacleLayout | None = None
+        self._last_submit_ns: int | None = None
+        self._last_pose_ns: int | None = None
+        self._next_decision_ns = 0
+        self._nu_ref = np.zeros(3)
+        self._previous_input = np.zeros(3)
+        self._consecutive_sink_failures = 0
+        self._start_ns = world.clock.now_ns()
+        self._tick_ns: int | None = None
+        self._target_since_ns = 0
+        self._stop_requested: str | None = None
+
+    # -- public -----------------------------------------------------------------------
+
+    def request_stop(self, reason: str) -> None:
+        """Ask the loop to stop at the next tick (safe from a signal handler)."""
+        self._stop_requested = reason
+
+    def run(self) -> RunStats:
+        """Tick until docked or stopped; thrusters are zeroed on the way out."""
+        clock = self.world.clock
+        next_tick = clock.now_ns()
+        try:
+            while self.mode not in (Mode.DOCKED, Mode.STOPPED):
+                self.tick(next_tick)
+                next_tick += self.config.period_ns
+                clock.sleep_until(next_tick)
+        finally:
+            self._send(ThrusterCommand.zero(clock.now_ns()))
+        return self.stats
+
+    def tick(self, t_ns: int) -> None:
+        """Run one loop iteration at time `t_ns`."""
+        dt_s = (self.config.period_ns if self._tick_ns is None else t_ns - self._tick_ns) / NS_PER_S
+        self._tick_ns = t_ns
+        self._ingest(t_ns)
+        self._watch_obstacles(t_ns)
+        self._swap_controller(t_ns)
+        if self._check_stop(t_ns):
+            return
+        eta_hat, nu_hat = self.observer.estimate_at(t_ns)
+        self.log.estimate(t_ns, eta_hat, nu_hat)
+        if self._pose_is_stale(t_ns):
+            self._hold(t_ns)
+            return
+        if t_ns >= self._next_decision_ns:
+            self._decide(t_ns, eta_hat)
+            self._next_decision_ns = t_ns + round(self.config.decision_period_s * NS_PER_S)
+        if self.mode is Mode.WAITING:
+            self._send(ThrusterCommand.zero(t_ns))
+            return
+        tau = self.velocity.command(self._nu_ref, nu_hat, dt_s)
+        self.log.velocity_reference(t_ns, self._nu_ref)
+        self.log.force(t_ns, tau)
+        self._send(self.allocator.allocate(tau, t_ns))
+        self.stats.t_ns.append(t_ns)
+        self.stats.eta_hat.append(eta_hat)
+        self.stats.nu_hat.append(nu_hat)
+        self.stats.nu_ref.append(self._nu_ref.copy())
+
+    # -- steps of a tick ----------------------------------------------------------------
+
+    def _event(self, t_ns: int, level: EventLevel, code: EventCode, text: str) -> None:
+        self.log.event(t_ns, level, code.value, text)
+
+    def _ingest(self, t_ns: int) -> None:
+        for pose in self.world.pose.poll():
+            self.log.pose(pose)
+            if self.observer.update_pose(pose):
+                self._last_pose_ns = pose.t_ns if self._last_pose_ns is None else max(
+                    self._last_pose_ns, pose.t_ns)
+            else:
+                self._reject(t_ns, f"pose at t={pose.t_ns} ns")
+        for imu in self.world.imu.poll():
+            self.log.imu(imu)
+            if not self.observer.update_imu(imu):
+                self._reject(t_ns, f"imu at t={imu.t_ns} ns")
+
+    def _reject(self, t_ns: int, what: str) -> None:
+        self.stats.rejected_samples += 1
+        # Log the first few and then every 100th, so a flood cannot swamp the log.
+        n = self.stats.rejected_samples
+        if n <= 5 or n % 100 == 0:
+            self._event(t_ns, EventLevel.WARN, EventCode.SAMPLE_REJECTED,
+                        f"observer rejected {what} ({n} so far)")
+
+    def _watch_obstacles(self, t_ns: int) -> None:
+        layout = self.world.obstacles.latest()
+        changed = (self._submitted_layout is None
+                   or layout.obstacles != self._submitted_layout.obstacles)
+        period = self.config.resynthesis_period_s
+        timer_due = (period is not None and self._last_submit_ns is not None
+                     and t_ns - self._last_submit_ns >= period * NS_PER_S)
+        if not (changed or timer_due):
+            return
+        if self.resynthesizer.busy and not changed:
+            self._event(t_ns, EventLevel.WARN, EventCode.SYNTHESIS_OVERRUN,
+                        f"synthesis slower than {period} s; keeping controller "
+                        f"v{self.controller_version}")
+            self._last_submit_ns = t_ns
+            return
+        if changed:
+            self.log.obstacles(layout)
+        self._submitted_layout = layout
+        self._last_submit_ns = t_ns
+        self.resynthesizer.submit(layout)
+
+    def _swap_controller(self, t_ns: int) -> None:
+        result = self.resynthesizer.poll()
+        if result is None:
+            return
+        if result.controller is not None:
+            self.controller = result.controller
+            self.controller_version = result.version
+            self._controller_layout = result.layout
+            self.stats.resyntheses += 1
+            self.stats.synthesis_seconds.append(result.seconds)
+            if self.mode is Mode.WAITING:
+                self.mode = Mode.RUNNING
+                self._next_decision_ns = t_ns
+            self._event(t_ns, EventLevel.DEBUG, EventCode.CONTROLLER_READY,
+                        f"controller v{result.version} in {result.seconds:.3f} s")
+            return
+        self.stats.failed_syntheses += 1
+        still_valid = (self._controller_layout is not None
+                       and layout_covers(self._controller_layout, result.layout))
+        if still_valid:
+            self._event(t_ns, EventLevel.WARN, EventCode.SYNTHESIS_FAILED,
+                        f"{result.error}; keeping controller v{self.controller_version}, "
+                        "which still avoids the new layout")
+            return
+        self.controller = None
+        self._event(t_ns, EventLevel.ERROR, EventCode.SYNTHESIS_FAILED,
+                    f"{result.error}; no valid controller, stopping the vessel")
+
+    def _check_stop(self, t_ns: int) -> bool:
+        if self._stop_requested is not None:
+            self._stop(t_ns, EventCode.STOPPED, self._stop_requested)
+            return True
+        if t_ns - self._start_ns > self.config.max_duration_s * NS_PER_S:
+            self._stop(t_ns, EventCode.TIMEOUT,
+                       f"not docked after {self.config.max_duration_s:.0f} s")
+            return True
+        return False
+
+    def _stop(self, t_ns: int, code: EventCode, text: str) -> None:
+        self.mode = Mode.STOPPED
+        self.stats.end_reason = text
+        self._event(t_ns, EventLevel.ERROR if code is not EventCode.STOPPED else EventLevel.INFO,
+                    code, text)
+        self._send(ThrusterCommand.zero(t_ns))
+
+    def _pose_is_stale(self, t_ns: int) -> bool:
+        timeout_ns = self.config.pose_timeout_s * NS_PER_S
+        # Before the first pose, allow one timeout from the start for the feed to come up.
+        last = self._start_ns if self._last_pose_ns is None else self._last_pose_ns
+        stale = t_ns - last > timeout_ns
+        if not stale and self.mode is Mode.HOLD:
+            self.mode = Mode.RUNNING if self.controller is not None else Mode.WAITING
+            self._next_decision_ns = t_ns
+            self._event(t_ns, EventLevel.INFO, EventCode.POSE_BACK, "pose feed is back")
+        return stale
+
+    def _hold(self, t_ns: int) -> None:
+        if self.mode is not Mode.HOLD:
+            self.stats.pose_losses += 1
+            self._event(t_ns, EventLevel.ERROR, EventCode.POSE_LOST,
+                        f"no pose for more than {self.config.pose_timeout_s} s; thrusters to zero")
+            self.mode = Mode.HOLD
+            self.velocity.reset()
+        self._send(ThrusterCommand.zero(t_ns))
+
+    def _decide(self, t_ns: int, eta_hat: FloatArray) -> None:
+        controller = self.controller
+        if controller is None:
+            if self.mode is not Mode.WAITING:
+                self._set_reference(np.zeros(3))
+                self._event(t_ns, EventLevel.ERROR, EventCode.NO_CONTROLLER,
+                            "no valid controller; velocity reference zero")
+            return
+        cell = controller.locate(eta_hat)
+        value = controller.value(eta_hat)
+        indices = np.zeros(0, dtype=np.int64)
+        chosen_index = -1
+        if value == 0.0:
+            self._at_target(t_ns)
+        elif math.isinf(value):
+            self.stats.not_winning_decisions += 1
+            self._event(t_ns, EventLevel.ERROR, EventCode.NOT_WINNING,
+                        f"state {np.round(eta_hat, 3).tolist()} outside the winning set; "
+                        "stopping")
+        else:
+            indices = controller.safe_input_indices(eta_hat)
+            if indices.size:
+                safe = controller.inputs[indices]
+                chosen_index = int(indices[self.select(safe, self._previous_input)])
+        chosen = (controller.inputs[chosen_index].copy() if chosen_index >= 0 else np.zeros(3))
+        if value != 0.0 and self.mode is Mode.AT_TARGET:
+            self.mode = Mode.RUNNING  # pushed out of the target: steer back in
+        self._set_reference(chosen)
+        if chosen_index >= 0:
+            self._previous_input = chosen
+        self.stats.decisions += 1
+        self.log.decision(Decision.from_arrays(
+            t_ns, eta_hat, cell, value, math.isfinite(value),
+            controller.inputs[indices], indices, chosen_index, self.controller_version,
+            self.scenario_hash, chosen_input=chosen))
+
+    def _at_target(self, t_ns: int) -> None:
+        if self.stats.target_reached_ns is None:
+            self.stats.target_reached_ns = t_ns
+            self._event(t_ns, EventLevel.INFO, EventCode.TARGET_REACHED,
+                        f"target reached after {(t_ns - self._start_ns) / NS_PER_S:.1f} s")
+        if self.mode is not Mode.AT_TARGET:
+            self.mode = Mode.AT_TARGET
+            self._target_since_ns = t_ns
+        elif t_ns - self._target_since_ns >= self.config.dock_hold_s * NS_PER_S:
+            self.mode = Mode.DOCKED
+            self.stats.docked_ns = t_ns
+            self.stats.end_reason = "docked"
+            self._event(t_ns, EventLevel.INFO, EventCode.DOCKED,
+                        f"held the target for {self.config.dock_hold_s:.0f} s")
+
+    def _set_reference(self, nu_ref: FloatArray) -> None:
+        self._nu_ref = np.asarray(nu_ref, dtype=np.float64).copy()
+
+    def _send(self, command: ThrusterCommand) -> None:
+        try:
+            self.world.thrusters.send(command)
+        except ThrusterSinkError as err:
+            self.stats.thruster_failures += 1
+            self._consecutive_sink_failures += 1
+            self._event(command.t_ns, EventLevel.ERROR, EventCode.THRUSTER_FAILURE, str(err))
+            if (self._consecutive_sink_failures >= self.config.max_thruster_failures
+                    and self.mode is not Mode.STOPPED):
+                self.mode = Mode.STOPPED
+                n = self._consecutive_sink_failures
+                self.stats.end_reason = f"thruster sink failed {n} times in a row"
+            return
+        self._consecutive_sink_failures = 0
+        self.log.thrusters(command)

@@ -1,0 +1,102 @@
+"""The components of the stack as the runtime sees them (typing.Protocol).
+
+The runtime composes an observer, a symbolic decision source, a velocity
+controller and a thrust allocator; these protocols are the narrow waists it
+calls, so a component can be replaced (another allocator, a replayed
+controller) without touching the loop.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hil.adapters.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
+from hil.replay.records import Decision, EventLevel
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+
+class Observer(Protocol):
+    """A state observer fed with timestamped samples."""
+
+    def update_pose(self, sample: PoseSample) -> bool:
+        """Fuse a pose; return False if it was rejected (stale, gated, non-finite)."""
+
+    def update_imu(self, sample: ImuSample) -> bool:
+        """Fuse an IMU sample; return False if it was rejected."""
+
+    def estimate_at(self, t_ns: int) -> tuple[FloatArray, FloatArray]:
+        """Return (eta (3,), nu (3,)) predicted to `t_ns` without changing the filter."""
+
+
+class SymbolicController(Protocol):
+    """A synthesized controller: its value function and its safe inputs."""
+
+    def locate(self, state: FloatArray) -> int:
+        """Return the flat cell index of `state` (x, y, psi), -1 outside the grid."""
+
+    def value(self, state: FloatArray) -> float:
+        """Return the value (steps to target) at `state`; +inf when not winning."""
+
+    def safe_input_indices(self, state: FloatArray) -> IntArray:
+        """Return the input-grid indices of every safe input at `state`, shape (k,)."""
+
+    @property
+    def inputs(self) -> FloatArray:
+        """The input grid, shape (n_inputs, 3), rows (u, v, r)."""
+
+
+class VelocityController(Protocol):
+    """Body-velocity controller: nu_ref and nu_hat to a generalized force."""
+
+    def command(self, nu_ref: FloatArray, nu_hat: FloatArray, dt_s: float) -> FloatArray:
+        """Return tau (X, Y, N), shape (3,) (N, N, N m)."""
+
+    def reset(self) -> None:
+        """Forget integrator state (after a hold or a stop)."""
+
+
+class Allocator(Protocol):
+    """Thrust allocation from a generalized force to thruster commands."""
+
+    def allocate(self, tau: FloatArray, t_ns: int) -> ThrusterCommand:
+        """Return the commands that best produce `tau` within all limits."""
+
+
+class RunLog(Protocol):
+    """Where the runtime records every message in and out, and every decision.
+
+    The bag recorder implements it for real runs; :class:`hil.runtime.trace.MemoryLog`
+    keeps everything in memory (campaigns, tests).
+    """
+
+    def pose(self, sample: PoseSample) -> None:
+        """Record a pose sample as received."""
+
+    def imu(self, sample: ImuSample) -> None:
+        """Record an IMU sample as received."""
+
+    def estimate(self, t_ns: int, eta: FloatArray, nu: FloatArray) -> None:
+        """Record the observer's estimate (eta (3,), nu (3,))."""
+
+    def velocity_reference(self, t_ns: int, nu_ref: FloatArray) -> None:
+        """Record the velocity reference sent to the low level, (3,)."""
+
+    def force(self, t_ns: int, tau: FloatArray) -> None:
+        """Record the generalized force demanded by the velocity controller, (3,)."""
+
+    def thrusters(self, command: ThrusterCommand) -> None:
+        """Record a thruster command as sent."""
+
+    def decision(self, record: Decision) -> None:
+        """Record one decision of the symbolic controller."""
+
+    def obstacles(self, layout: ObstacleLayout) -> None:
+        """Record an obstacle layout when it changes."""
+
+    def event(self, t_ns: int, level: EventLevel, code: str, text: str) -> None:
+        """Record a runtime event or fault."""
