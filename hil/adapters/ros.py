@@ -86,13 +86,19 @@ def pose_from_msg(msg: Any, transform: ArenaTransform) -> PoseSample:
     pose = msg.pose.pose
     q = pose.orientation
     yaw = yaw_from_quaternion(float(q.x), float(q.y), float(q.z), float(q.w))
-    lab = PoseSample(stamp_to_ns(msg.header.stamp), float(pose.position.x),
-                     float(pose.position.y), yaw, Frame.LAB_NED)
+    lab = PoseSample(
+        stamp_to_ns(msg.header.stamp),
+        float(pose.position.x),
+        float(pose.position.y),
+        yaw,
+        Frame.LAB_NED,
+    )
     return transform.to_arena(lab)
 
 
-def fill_pose_msg(msg: Any, pose: PoseSample, transform: ArenaTransform,
-                  frame_id: str = "world_ned") -> None:
+def fill_pose_msg(
+    msg: Any, pose: PoseSample, transform: ArenaTransform, frame_id: str = "world_ned"
+) -> None:
     """Fill a PoseWithCovarianceStamped with an arena pose, expressed in the lab frame."""
     lab = transform.to_lab(pose)
     fill_stamp(msg.header.stamp, lab.t_ns)
@@ -106,8 +112,12 @@ def fill_pose_msg(msg: Any, pose: PoseSample, transform: ArenaTransform,
 
 def imu_from_msg(msg: Any) -> ImuSample:
     """Convert a sensor_msgs/Imu to an IMU sample (planar specific force and yaw rate)."""
-    return ImuSample(stamp_to_ns(msg.header.stamp), float(msg.linear_acceleration.x),
-                     float(msg.linear_acceleration.y), float(msg.angular_velocity.z))
+    return ImuSample(
+        stamp_to_ns(msg.header.stamp),
+        float(msg.linear_acceleration.x),
+        float(msg.linear_acceleration.y),
+        float(msg.angular_velocity.z),
+    )
 
 
 def fill_imu_msg(msg: Any, imu: ImuSample, frame_id: str = "voyager/imu_link") -> None:
@@ -129,16 +139,24 @@ def thruster_wrench_components(command: ThrusterCommand) -> dict[str, tuple[floa
     """
     return {
         "tunnel": (command.tunnel, 0.0),
-        "port": (command.port * math.cos(command.port_angle_rad),
-                 command.port * math.sin(command.port_angle_rad)),
-        "starboard": (command.starboard * math.cos(command.starboard_angle_rad),
-                      command.starboard * math.sin(command.starboard_angle_rad)),
+        "port": (
+            command.port * math.cos(command.port_angle_rad),
+            command.port * math.sin(command.port_angle_rad),
+        ),
+        "starboard": (
+            command.starboard * math.cos(command.starboard_angle_rad),
+            command.starboard * math.sin(command.starboard_angle_rad),
+        ),
     }
 
 
-def thruster_command_from_components(t_ns: int, tunnel_x: float, port: tuple[float, float],
-                                     starboard: tuple[float, float],
-                                     previous: ThrusterCommand | None = None) -> ThrusterCommand:
+def thruster_command_from_components(
+    t_ns: int,
+    tunnel_x: float,
+    port: tuple[float, float],
+    starboard: tuple[float, float],
+    previous: ThrusterCommand | None = None,
+) -> ThrusterCommand:
     """Rebuild a command from the lab's wrench components (inverse of the above).
 
     A zero azimuth vector carries no angle; the previous angle (or the reference
@@ -154,8 +172,9 @@ def thruster_command_from_components(t_ns: int, tunnel_x: float, port: tuple[flo
 
     port_thrust, port_angle = polar(port, fallback.port_angle_rad)
     stbd_thrust, stbd_angle = polar(starboard, fallback.starboard_angle_rad)
-    return ThrusterCommand(t_ns, max(-1.0, min(1.0, tunnel_x)), port_thrust, stbd_thrust,
-                           port_angle, stbd_angle)
+    return ThrusterCommand(
+        t_ns, max(-1.0, min(1.0, tunnel_x)), port_thrust, stbd_thrust, port_angle, stbd_angle
+    )
 
 
 class _Inbox:
@@ -245,8 +264,9 @@ class RosClock:
 
         clock = self._node.get_clock()
         if t_ns > self.now_ns():
-            clock.sleep_until(Time(nanoseconds=int(t_ns), clock_type=clock.clock_type),
-                              context=self._context)
+            clock.sleep_until(
+                Time(nanoseconds=int(t_ns), clock_type=clock.clock_type), context=self._context
+            )
 
 
 class RosWorld:
@@ -289,7 +309,8 @@ class RosWorld:
             raise RosBackendError(
                 "the ROS backend needs rclpy and the geometry_msgs/sensor_msgs packages: "
                 "install the 'ros' extra (x86_64) or source a ROS 2 Jazzy install "
-                f"({err})") from err
+                f"({err})"
+            ) from err
         cfg = self.config
         self._context = rclpy.Context()
         if cfg.domain_id is None:
@@ -297,17 +318,25 @@ class RosWorld:
         else:
             rclpy.init(context=self._context, domain_id=cfg.domain_id)
         overrides = [Parameter("use_sim_time", Parameter.Type.BOOL, cfg.use_sim_time)]
-        self._node = rclpy.create_node(cfg.node_name, context=self._context,
-                                       parameter_overrides=overrides)
-        sensor_qos = QoSProfile(depth=cfg.qos_depth, reliability=(
-            ReliabilityPolicy.BEST_EFFORT if cfg.best_effort_sensors
-            else ReliabilityPolicy.RELIABLE))
-        self._node.create_subscription(PoseWithCovarianceStamped, cfg.topics.pose,
-                                       self._on_pose, sensor_qos)
+        self._node = rclpy.create_node(
+            cfg.node_name, context=self._context, parameter_overrides=overrides
+        )
+        sensor_qos = QoSProfile(
+            depth=cfg.qos_depth,
+            reliability=(
+                ReliabilityPolicy.BEST_EFFORT
+                if cfg.best_effort_sensors
+                else ReliabilityPolicy.RELIABLE
+            ),
+        )
+        self._node.create_subscription(
+            PoseWithCovarianceStamped, cfg.topics.pose, self._on_pose, sensor_qos
+        )
         self._node.create_subscription(Imu, cfg.topics.imu, self._on_imu, sensor_qos)
-        publishers = {name: self._node.create_publisher(Wrench, getattr(cfg.topics, name),
-                                                        cfg.qos_depth)
-                      for name in ("tunnel", "port", "starboard")}
+        publishers = {
+            name: self._node.create_publisher(Wrench, getattr(cfg.topics, name), cfg.qos_depth)
+            for name in ("tunnel", "port", "starboard")
+        }
         self.thruster_sink = RosThrusterSink(publishers, Wrench)
         self.clock = RosClock(self._node, self._context)
         self._executor = SingleThreadedExecutor(context=self._context)

@@ -168,8 +168,9 @@ class Rectangle:
 
     def shifted(self, dx_m: float, dy_m: float) -> Rectangle:
         """Return this rectangle moved by (dx, dy) metres."""
-        return Rectangle(self.x_min_m + dx_m, self.x_max_m + dx_m,
-                         self.y_min_m + dy_m, self.y_max_m + dy_m)
+        return Rectangle(
+            self.x_min_m + dx_m, self.x_max_m + dx_m, self.y_min_m + dy_m, self.y_max_m + dy_m
+        )
 
 
 @dataclass(frozen=True, slots=True)

@@ -20,8 +20,9 @@ class SimClock:
             forward, e.g. to integrate the vessel; None for a bare clock.
     """
 
-    def __init__(self, start_ns: int = 0,
-                 advance: Callable[[int, int], None] | None = None) -> None:
+    def __init__(
+        self, start_ns: int = 0, advance: Callable[[int, int], None] | None = None
+    ) -> None:
         self._now_ns = int(start_ns)
         self._advance = advance
 

@@ -83,8 +83,10 @@ class LoopConfig:
         if self.dock_hold_s < 0:
             raise ValueError(f"loop config 'dock_hold_s' must be >= 0, got {self.dock_hold_s!r}")
         if self.resynthesis_period_s is not None and not self.resynthesis_period_s > 0:
-            raise ValueError("loop config 'resynthesis_period_s' must be positive or None, "
-                             f"got {self.resynthesis_period_s!r}")
+            raise ValueError(
+                "loop config 'resynthesis_period_s' must be positive or None, "
+                f"got {self.resynthesis_period_s!r}"
+            )
 
     @property
     def period_ns(self) -> int:
@@ -133,9 +135,16 @@ def layout_covers(old: ObstacleLayout, new: ObstacleLayout) -> bool:
 
     Then a controller synthesized for `old` avoids `new` as well and stays valid.
     """
-    return all(any(o.x_min_m <= n.x_min_m and n.x_max_m <= o.x_max_m
-                   and o.y_min_m <= n.y_min_m and n.y_max_m <= o.y_max_m
-                   for o in old.obstacles) for n in new.obstacles)
+    return all(
+        any(
+            o.x_min_m <= n.x_min_m
+            and n.x_max_m <= o.x_max_m
+            and o.y_min_m <= n.y_min_m
+            and n.y_max_m <= o.y_max_m
+            for o in old.obstacles
+        )
+        for n in new.obstacles
+    )
 
 
 class Runtime:
@@ -154,10 +163,18 @@ class Runtime:
         scenario_hash: Identifies the scenario in every decision record.
     """
 
-    def __init__(self, world: World, observer: Observer, velocity: VelocityController,
-                 allocator: Allocator, resynthesizer: Resynthesizer[SymbolicController],
-                 select: Callable[[FloatArray, FloatArray], int], log: RunLog,
-                 config: LoopConfig | None = None, scenario_hash: str = "") -> None:
+    def __init__(
+        self,
+        world: World,
+        observer: Observer,
+        velocity: VelocityController,
+        allocator: Allocator,
+        resynthesizer: Resynthesizer[SymbolicController],
+        select: Callable[[FloatArray, FloatArray], int],
+        log: RunLog,
+        config: LoopConfig | None = None,
+        scenario_hash: str = "",
+    ) -> None:
         self.world = world
         self.observer = observer
         self.velocity = velocity
@@ -241,8 +258,9 @@ class Runtime:
         for pose in self.world.pose.poll():
             self.log.pose(pose)
             if self.observer.update_pose(pose):
-                self._last_pose_ns = pose.t_ns if self._last_pose_ns is None else max(
-                    self._last_pose_ns, pose.t_ns)
+                self._last_pose_ns = (
+                    pose.t_ns if self._last_pose_ns is None else max(self._last_pose_ns, pose.t_ns)
+                )
             else:
                 self._reject(t_ns, f"pose at t={pose.t_ns} ns")
         for imu in self.world.imu.poll():
@@ -255,22 +273,33 @@ class Runtime:
         # Log the first few and then every 100th, so a flood cannot swamp the log.
         n = self.stats.rejected_samples
         if n <= 5 or n % 100 == 0:
-            self._event(t_ns, EventLevel.WARN, EventCode.SAMPLE_REJECTED,
-                        f"observer rejected {what} ({n} so far)")
+            self._event(
+                t_ns,
+                EventLevel.WARN,
+                EventCode.SAMPLE_REJECTED,
+                f"observer rejected {what} ({n} so far)",
+            )
 
     def _watch_obstacles(self, t_ns: int) -> None:
         layout = self.world.obstacles.latest()
-        changed = (self._submitted_layout is None
-                   or layout.obstacles != self._submitted_layout.obstacles)
+        changed = (
+            self._submitted_layout is None or layout.obstacles != self._submitted_layout.obstacles
+        )
         period = self.config.resynthesis_period_s
-        timer_due = (period is not None and self._last_submit_ns is not None
-                     and t_ns - self._last_submit_ns >= period * NS_PER_S)
+        timer_due = (
+            period is not None
+            and self._last_submit_ns is not None
+            and t_ns - self._last_submit_ns >= period * NS_PER_S
+        )
         if not (changed or timer_due):
             return
         if self.resynthesizer.busy and not changed:
-            self._event(t_ns, EventLevel.WARN, EventCode.SYNTHESIS_OVERRUN,
-                        f"synthesis slower than {period} s; keeping controller "
-                        f"v{self.controller_version}")
+            self._event(
+                t_ns,
+                EventLevel.WARN,
+                EventCode.SYNTHESIS_OVERRUN,
+                f"synthesis slower than {period} s; keeping controller v{self.controller_version}",
+            )
             self._last_submit_ns = t_ns
             return
         if changed:
@@ -292,36 +321,51 @@ class Runtime:
             if self.mode is Mode.WAITING:
                 self.mode = Mode.RUNNING
                 self._next_decision_ns = t_ns
-            self._event(t_ns, EventLevel.DEBUG, EventCode.CONTROLLER_READY,
-                        f"controller v{result.version} in {result.seconds:.3f} s")
+            self._event(
+                t_ns,
+                EventLevel.DEBUG,
+                EventCode.CONTROLLER_READY,
+                f"controller v{result.version} in {result.seconds:.3f} s",
+            )
             return
         self.stats.failed_syntheses += 1
-        still_valid = (self._controller_layout is not None
-                       and layout_covers(self._controller_layout, result.layout))
+        still_valid = self._controller_layout is not None and layout_covers(
+            self._controller_layout, result.layout
+        )
         if still_valid:
-            self._event(t_ns, EventLevel.WARN, EventCode.SYNTHESIS_FAILED,
-                        f"{result.error}; keeping controller v{self.controller_version}, "
-                        "which still avoids the new layout")
+            self._event(
+                t_ns,
+                EventLevel.WARN,
+                EventCode.SYNTHESIS_FAILED,
+                f"{result.error}; keeping controller v{self.controller_version}, "
+                "which still avoids the new layout",
+            )
             return
         self.controller = None
-        self._event(t_ns, EventLevel.ERROR, EventCode.SYNTHESIS_FAILED,
-                    f"{result.error}; no valid controller, stopping the vessel")
+        self._event(
+            t_ns,
+            EventLevel.ERROR,
+            EventCode.SYNTHESIS_FAILED,
+            f"{result.error}; no valid controller, stopping the vessel",
+        )
 
     def _check_stop(self, t_ns: int) -> bool:
         if self._stop_requested is not None:
             self._stop(t_ns, EventCode.STOPPED, self._stop_requested)
             return True
         if t_ns - self._start_ns > self.config.max_duration_s * NS_PER_S:
-            self._stop(t_ns, EventCode.TIMEOUT,
-                       f"not docked after {self.config.max_duration_s:.0f} s")
+            self._stop(
+                t_ns, EventCode.TIMEOUT, f"not docked after {self.config.max_duration_s:.0f} s"
+            )
             return True
         return False
 
     def _stop(self, t_ns: int, code: EventCode, text: str) -> None:
         self.mode = Mode.STOPPED
         self.stats.end_reason = text
-        self._event(t_ns, EventLevel.ERROR if code is not EventCode.STOPPED else EventLevel.INFO,
-                    code, text)
+        self._event(
+            t_ns, EventLevel.ERROR if code is not EventCode.STOPPED else EventLevel.INFO, code, text
+        )
         self._send(ThrusterCommand.zero(t_ns))
 
     def _pose_is_stale(self, t_ns: int) -> bool:
@@ -338,8 +382,12 @@ class Runtime:
     def _hold(self, t_ns: int) -> None:
         if self.mode is not Mode.HOLD:
             self.stats.pose_losses += 1
-            self._event(t_ns, EventLevel.ERROR, EventCode.POSE_LOST,
-                        f"no pose for more than {self.config.pose_timeout_s} s; thrusters to zero")
+            self._event(
+                t_ns,
+                EventLevel.ERROR,
+                EventCode.POSE_LOST,
+                f"no pose for more than {self.config.pose_timeout_s} s; thrusters to zero",
+            )
             self.mode = Mode.HOLD
             self.velocity.reset()
         self._send(ThrusterCommand.zero(t_ns))
@@ -349,8 +397,12 @@ class Runtime:
         if controller is None:
             if self.mode is not Mode.WAITING:
                 self._set_reference(np.zeros(3))
-                self._event(t_ns, EventLevel.ERROR, EventCode.NO_CONTROLLER,
-                            "no valid controller; velocity reference zero")
+                self._event(
+                    t_ns,
+                    EventLevel.ERROR,
+                    EventCode.NO_CONTROLLER,
+                    "no valid controller; velocity reference zero",
+                )
             return
         cell = controller.locate(eta_hat)
         value = controller.value(eta_hat)
@@ -360,31 +412,49 @@ class Runtime:
             self._at_target(t_ns)
         elif math.isinf(value):
             self.stats.not_winning_decisions += 1
-            self._event(t_ns, EventLevel.ERROR, EventCode.NOT_WINNING,
-                        f"state {np.round(eta_hat, 3).tolist()} outside the winning set; "
-                        "stopping")
+            self._event(
+                t_ns,
+                EventLevel.ERROR,
+                EventCode.NOT_WINNING,
+                f"state {np.round(eta_hat, 3).tolist()} outside the winning set; stopping",
+            )
         else:
             indices = controller.safe_input_indices(eta_hat)
             if indices.size:
                 safe = controller.inputs[indices]
                 chosen_index = int(indices[self.select(safe, self._previous_input)])
-        chosen = (controller.inputs[chosen_index].copy() if chosen_index >= 0 else np.zeros(3))
+        chosen = controller.inputs[chosen_index].copy() if chosen_index >= 0 else np.zeros(3)
         if value != 0.0 and self.mode is Mode.AT_TARGET:
             self.mode = Mode.RUNNING  # pushed out of the target: steer back in
         self._set_reference(chosen)
         if chosen_index >= 0:
             self._previous_input = chosen
         self.stats.decisions += 1
-        self.log.decision(Decision.from_arrays(
-            t_ns, eta_hat, cell, value, math.isfinite(value),
-            controller.inputs[indices], indices, chosen_index, self.controller_version,
-            self.scenario_hash, chosen_input=chosen))
+        self.log.decision(
+            Decision.from_arrays(
+                t_ns,
+                eta_hat,
+                cell,
+                value,
+                math.isfinite(value),
+                controller.inputs[indices],
+                indices,
+                chosen_index,
+                self.controller_version,
+                self.scenario_hash,
+                chosen_input=chosen,
+            )
+        )
 
     def _at_target(self, t_ns: int) -> None:
         if self.stats.target_reached_ns is None:
             self.stats.target_reached_ns = t_ns
-            self._event(t_ns, EventLevel.INFO, EventCode.TARGET_REACHED,
-                        f"target reached after {(t_ns - self._start_ns) / NS_PER_S:.1f} s")
+            self._event(
+                t_ns,
+                EventLevel.INFO,
+                EventCode.TARGET_REACHED,
+                f"target reached after {(t_ns - self._start_ns) / NS_PER_S:.1f} s",
+            )
         if self.mode is not Mode.AT_TARGET:
             self.mode = Mode.AT_TARGET
             self._target_since_ns = t_ns
@@ -392,8 +462,12 @@ class Runtime:
             self.mode = Mode.DOCKED
             self.stats.docked_ns = t_ns
             self.stats.end_reason = "docked"
-            self._event(t_ns, EventLevel.INFO, EventCode.DOCKED,
-                        f"held the target for {self.config.dock_hold_s:.0f} s")
+            self._event(
+                t_ns,
+                EventLevel.INFO,
+                EventCode.DOCKED,
+                f"held the target for {self.config.dock_hold_s:.0f} s",
+            )
 
     def _set_reference(self, nu_ref: FloatArray) -> None:
         self._nu_ref = np.asarray(nu_ref, dtype=np.float64).copy()
@@ -405,8 +479,10 @@ class Runtime:
             self.stats.thruster_failures += 1
             self._consecutive_sink_failures += 1
             self._event(command.t_ns, EventLevel.ERROR, EventCode.THRUSTER_FAILURE, str(err))
-            if (self._consecutive_sink_failures >= self.config.max_thruster_failures
-                    and self.mode is not Mode.STOPPED):
+            if (
+                self._consecutive_sink_failures >= self.config.max_thruster_failures
+                and self.mode is not Mode.STOPPED
+            ):
                 self.mode = Mode.STOPPED
                 n = self._consecutive_sink_failures
                 self.stats.end_reason = f"thruster sink failed {n} times in a row"

@@ -58,8 +58,11 @@ class Resynthesizer(Generic[ControllerT]):
         mode: Thread or inline (see module docstring).
     """
 
-    def __init__(self, solve: Callable[[ObstacleLayout], ControllerT],
-                 mode: ResynthesisMode = ResynthesisMode.THREAD) -> None:
+    def __init__(
+        self,
+        solve: Callable[[ObstacleLayout], ControllerT],
+        mode: ResynthesisMode = ResynthesisMode.THREAD,
+    ) -> None:
         self._solve = solve
         self._mode = mode
         self._lock = threading.Condition()
@@ -70,8 +73,7 @@ class Resynthesizer(Generic[ControllerT]):
         self._closed = False
         self._thread: threading.Thread | None = None
         if mode is ResynthesisMode.THREAD:
-            self._thread = threading.Thread(target=self._work, name="hil-resynthesis",
-                                            daemon=True)
+            self._thread = threading.Thread(target=self._work, name="hil-resynthesis", daemon=True)
             self._thread.start()
 
     @property
@@ -125,10 +127,14 @@ class Resynthesizer(Generic[ControllerT]):
         try:
             controller = self._solve(layout)
         except Exception as err:  # any solver failure is a result, not a crash
-            return SynthesisResult(self._version, layout, None, f"{type(err).__name__}: {err}",
-                                   time.perf_counter() - start)
-        return SynthesisResult(self._version, layout, controller, None,
-                               time.perf_counter() - start)
+            return SynthesisResult(
+                self._version,
+                layout,
+                None,
+                f"{type(err).__name__}: {err}",
+                time.perf_counter() - start,
+            )
+        return SynthesisResult(self._version, layout, controller, None, time.perf_counter() - start)
 
     def _work(self) -> None:
         while True:

@@ -51,8 +51,11 @@ class TrackingError:
         err[:, 2] = np.degrees(err[:, 2])
         rms = np.sqrt(np.mean(err**2, axis=0))
         peak = np.max(np.abs(err), axis=0)
-        return TrackingError((float(rms[0]), float(rms[1]), float(rms[2])),
-                             (float(peak[0]), float(peak[1]), float(peak[2])), len(err))
+        return TrackingError(
+            (float(rms[0]), float(rms[1]), float(rms[2])),
+            (float(peak[0]), float(peak[1]), float(peak[2])),
+            len(err),
+        )
 
 
 @dataclass(frozen=True, slots=True)
@@ -124,31 +127,39 @@ class RunSummary:
         """Print the summary as a table (rich)."""
         console = console or Console()
         verdict = "[bold green]DOCKED[/]" if self.docked else "[bold red]NOT DOCKED[/]"
-        console.print(f"{verdict}  {self.scenario} (seed {self.seed}, {self.backend}): "
-                      f"{self.end_reason}")
+        console.print(
+            f"{verdict}  {self.scenario} (seed {self.seed}, {self.backend}): {self.end_reason}"
+        )
         table = Table(show_header=True, header_style="bold")
         table.add_column("measure")
         table.add_column("value", justify="right")
         table.add_column("paper (tank)", justify="right")
-        docking = "-" if self.docking_time_s is None else (
-            f"{self.docking_time_s:.1f} s ({self.docking_time_s / 60:.2f} min)")
+        docking = (
+            "-"
+            if self.docking_time_s is None
+            else (f"{self.docking_time_s:.1f} s ({self.docking_time_s / 60:.2f} min)")
+        )
         table.add_row("docking time", docking, "2.67 min (1.71-3.66)")
-        table.add_row("min hull clearance to real obstacles",
-                      f"{self.min_clearance_m:.3f} m", "-")
+        table.add_row("min hull clearance to real obstacles", f"{self.min_clearance_m:.3f} m", "-")
         table.add_row("hull contacts", str(self.hull_contacts), "0")
         table.add_row("decisions / re-syntheses", f"{self.decisions} / {self.resyntheses}", "-")
-        table.add_row("synthesis time mean / max",
-                      f"{self.synthesis_mean_s * 1e3:.1f} / {self.synthesis_max_s * 1e3:.1f} ms",
-                      "~500 ms (GPU)")
+        table.add_row(
+            "synthesis time mean / max",
+            f"{self.synthesis_mean_s * 1e3:.1f} / {self.synthesis_max_s * 1e3:.1f} ms",
+            "~500 ms (GPU)",
+        )
         labels = ("surge (m/s)", "sway (m/s)", "yaw (deg/s)")
-        for label, rms, peak, paper in zip(labels, self.tracking.rms, self.tracking.max_abs,
-                                           PAPER_TRACKING_ERROR, strict=True):
+        for label, rms, peak, paper in zip(
+            labels, self.tracking.rms, self.tracking.max_abs, PAPER_TRACKING_ERROR, strict=True
+        ):
             table.add_row(f"tracking RMS / max, {label}", f"{rms:.5f} / {peak:.4f}", f"{paper}")
         table.add_row("decisions outside winning set", str(self.not_winning_decisions), "-")
-        table.add_row("rejected samples / pose losses",
-                      f"{self.rejected_samples} / {self.pose_losses}", "-")
-        table.add_row("run time (simulated / wall)",
-                      f"{self.duration_s:.1f} s / {self.wall_s:.2f} s", "-")
+        table.add_row(
+            "rejected samples / pose losses", f"{self.rejected_samples} / {self.pose_losses}", "-"
+        )
+        table.add_row(
+            "run time (simulated / wall)", f"{self.duration_s:.1f} s / {self.wall_s:.2f} s", "-"
+        )
         console.print(table)
         if self.log is not None:
             console.print(f"log: {Path(self.log)}")
