@@ -30,7 +30,9 @@ class CommandModule(Protocol):
 
 # name on the command line -> module under hil.commands
 COMMANDS: dict[str, str] = {
+    "run": "run",
     "synth": "synth",
+    "info": "info",
 }
 
 

@@ -29,7 +29,7 @@ from hil.adapters.samples import ObstacleLayout, ThrusterCommand
 from hil.replay.records import Decision, EventLevel
 from hil.runtime.events import EventCode
 from hil.runtime.resynthesis import Resynthesizer
-from hil.runtime.stack import Allocator, Observer, RunLog, SymbolicController, VelocityController
+from hil.runtime.stack import LowLevel, Observer, RunLog, SymbolicController
 
 FloatArray = NDArray[np.float64]
 NS_PER_S = 1_000_000_000
@@ -153,8 +153,7 @@ class Runtime:
     Args:
         world: Clock and adapters of one backend.
         observer: State observer.
-        velocity: Velocity controller.
-        allocator: Thrust allocator.
+        low_level: Velocity controller and thrust allocation.
         resynthesizer: Worker that turns obstacle layouts into controllers.
         select: The paper's selection among safe inputs: (safe (k, 3), previous (3,)) ->
             index into the safe rows.
@@ -167,8 +166,7 @@ class Runtime:
         self,
         world: World,
         observer: Observer,
-        velocity: VelocityController,
-        allocator: Allocator,
+        low_level: LowLevel,
         resynthesizer: Resynthesizer[SymbolicController],
         select: Callable[[FloatArray, FloatArray], int],
         log: RunLog,
@@ -177,8 +175,7 @@ class Runtime:
     ) -> None:
         self.world = world
         self.observer = observer
-        self.velocity = velocity
-        self.allocator = allocator
+        self.low_level = low_level
         self.resynthesizer = resynthesizer
         self.select = select
         self.log = log
@@ -197,7 +194,6 @@ class Runtime:
         self._previous_input = np.zeros(3)
         self._consecutive_sink_failures = 0
         self._start_ns = world.clock.now_ns()
-        self._tick_ns: int | None = None
         self._target_since_ns = 0
         self._stop_requested: str | None = None
 
@@ -222,28 +218,30 @@ class Runtime:
 
     def tick(self, t_ns: int) -> None:
         """Run one loop iteration at time `t_ns`."""
-        dt_s = (self.config.period_ns if self._tick_ns is None else t_ns - self._tick_ns) / NS_PER_S
-        self._tick_ns = t_ns
         self._ingest(t_ns)
         self._watch_obstacles(t_ns)
         self._swap_controller(t_ns)
         if self._check_stop(t_ns):
             return
-        eta_hat, nu_hat = self.observer.estimate_at(t_ns)
-        self.log.estimate(t_ns, eta_hat, nu_hat)
+        estimate = self.observer.estimate()
         if self._pose_is_stale(t_ns):
             self._hold(t_ns)
             return
+        if estimate is None:  # the feed is coming up: wait with thrusters at zero
+            self._send(ThrusterCommand.zero(t_ns))
+            return
+        eta_hat, nu_hat = estimate
+        self.log.estimate(t_ns, eta_hat, nu_hat)
         if t_ns >= self._next_decision_ns:
             self._decide(t_ns, eta_hat)
             self._next_decision_ns = t_ns + round(self.config.decision_period_s * NS_PER_S)
         if self.mode is Mode.WAITING:
             self._send(ThrusterCommand.zero(t_ns))
             return
-        tau = self.velocity.command(self._nu_ref, nu_hat, dt_s)
+        out = self.low_level.step(self._nu_ref, nu_hat, t_ns)
         self.log.velocity_reference(t_ns, self._nu_ref)
-        self.log.force(t_ns, tau)
-        self._send(self.allocator.allocate(tau, t_ns))
+        self.log.force(t_ns, out.tau)
+        self._send(out.command)
         self.stats.t_ns.append(t_ns)
         self.stats.eta_hat.append(eta_hat)
         self.stats.nu_hat.append(nu_hat)
@@ -389,7 +387,7 @@ class Runtime:
                 f"no pose for more than {self.config.pose_timeout_s} s; thrusters to zero",
             )
             self.mode = Mode.HOLD
-            self.velocity.reset()
+            self.low_level.reset()
         self._send(ThrusterCommand.zero(t_ns))
 
     def _decide(self, t_ns: int, eta_hat: FloatArray) -> None:

@@ -8,6 +8,7 @@ controller) without touching the loop.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
@@ -29,8 +30,8 @@ class Observer(Protocol):
     def update_imu(self, sample: ImuSample) -> bool:
         """Fuse an IMU sample; return False if it was rejected."""
 
-    def estimate_at(self, t_ns: int) -> tuple[FloatArray, FloatArray]:
-        """Return (eta (3,), nu (3,)) predicted to `t_ns` without changing the filter."""
+    def estimate(self) -> tuple[FloatArray, FloatArray] | None:
+        """Return the newest (eta (3,), nu (3,)), or None before the filter has started."""
 
 
 class SymbolicController(Protocol):
@@ -50,21 +51,31 @@ class SymbolicController(Protocol):
         """The input grid, shape (n_inputs, 3), rows (u, v, r)."""
 
 
-class VelocityController(Protocol):
-    """Body-velocity controller: nu_ref and nu_hat to a generalized force."""
+class LowLevel(Protocol):
+    """Velocity controller and thrust allocation, run together once per loop tick.
 
-    def command(self, nu_ref: FloatArray, nu_hat: FloatArray, dt_s: float) -> FloatArray:
-        """Return tau (X, Y, N), shape (3,) (N, N, N m)."""
+    They form one step because the controller's anti-windup needs the force the
+    allocator could actually achieve.
+    """
+
+    def step(self, nu_ref: FloatArray, nu_hat: FloatArray, t_ns: int) -> LowLevelOutput:
+        """Return the force demand and the thruster command for this tick."""
 
     def reset(self) -> None:
         """Forget integrator state (after a hold or a stop)."""
 
 
-class Allocator(Protocol):
-    """Thrust allocation from a generalized force to thruster commands."""
+@dataclass(frozen=True, slots=True)
+class LowLevelOutput:
+    """One tick of the low level.
 
-    def allocate(self, tau: FloatArray, t_ns: int) -> ThrusterCommand:
-        """Return the commands that best produce `tau` within all limits."""
+    Attributes:
+        tau: Force demanded by the velocity controller (X N, Y N, N N m), shape (3,).
+        command: Thruster commands that realize it as closely as the limits allow.
+    """
+
+    tau: FloatArray
+    command: ThrusterCommand
 
 
 class RunLog(Protocol):

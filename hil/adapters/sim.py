@@ -1,0 +1,267 @@
+"""The simulated backend: the vessel simulator with its sensors, behind the adapters.
+
+A :class:`SimWorld` owns the plant (hull + thrusters, :mod:`hil.sim.plant`),
+the pose and IMU sensor models and the obstacle schedule. Its clock is a
+:class:`~hil.runtime.clock.SimClock`: when the loop sleeps, the world integrates
+the plant over that span at the physics rate, with the last thruster command
+held, and queues the sensor samples that fall due. Everything is seeded, so a
+run repeats exactly.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hil.adapters.interfaces import ThrusterSinkError
+from hil.adapters.samples import (
+    ImuSample,
+    ObstacleLayout,
+    PoseSample,
+    Rectangle,
+    ThrusterCommand,
+)
+from hil.runtime.clock import SimClock
+from hil.sim.plant import N_PLANT, N_TRACE, P_ALPHA, P_ETA, TR_ETA, TR_NU, TR_NU_DOT, plant_advance
+from hil.sim.sensors import ImuSensorConfig, PoseSensorConfig, SimulatedImu, SimulatedPoseSensor
+from hil.sim.thrusters import VOYAGER_THRUSTERS, ThrusterParams
+from hil.sim.vessel import ENTERPRISE_I, EnvironmentalLoad, Integrator, Vessel, VesselParams
+
+FloatArray = NDArray[np.float64]
+NS_PER_S = 1_000_000_000
+
+
+@dataclass(frozen=True, slots=True)
+class ObstacleMotion:
+    """A scheduled constant-velocity motion of one obstacle.
+
+    Attributes:
+        index: Which obstacle (position in the layout).
+        velocity_mps: (vx, vy) in the arena frame (m/s).
+        start_s: When the motion starts (s).
+        stop_s: When it stops (s).
+    """
+
+    index: int
+    velocity_mps: tuple[float, float]
+    start_s: float
+    stop_s: float
+
+    def offset_m(self, t_s: float) -> tuple[float, float]:
+        """Return the displacement accumulated by time `t_s` (m)."""
+        moving_s = min(max(t_s, self.start_s), self.stop_s) - self.start_s
+        return self.velocity_mps[0] * moving_s, self.velocity_mps[1] * moving_s
+
+
+@dataclass(frozen=True, slots=True)
+class ThrusterOutage:
+    """A span in which the thruster link fails (commands raise ThrusterSinkError).
+
+    Attributes:
+        start_s: Start of the outage (s).
+        stop_s: End of the outage (s).
+    """
+
+    start_s: float
+    stop_s: float
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """The simulated world.
+
+    Attributes:
+        start: Initial pose (x m, y m, psi rad), at rest.
+        seed: Seed of every random stream (sensor noise, dropouts, loads).
+        vessel: Hull coefficients.
+        thrusters: Thruster geometry, gains and limits.
+        dt_s: Physics step (s); 0.01 s as in the paper.
+        integrator: Forward Euler (the paper's) or RK4.
+        pose: Pose sensor model.
+        imu: IMU model.
+        load: Environmental load b(t).
+        obstacles: Real obstacles at t = 0.
+        motions: Scheduled obstacle motions.
+        obstacle_report_period_s: How often a moving obstacle's position is reported (s).
+        thruster_outages: Spans of thruster-link failure (fault injection).
+    """
+
+    start: tuple[float, float, float]
+    seed: int = 0
+    vessel: VesselParams = ENTERPRISE_I
+    thrusters: ThrusterParams = VOYAGER_THRUSTERS
+    dt_s: float = 0.01
+    integrator: Integrator = Integrator.EULER
+    pose: PoseSensorConfig = field(default_factory=PoseSensorConfig)
+    imu: ImuSensorConfig = field(default_factory=ImuSensorConfig)
+    load: EnvironmentalLoad = field(default_factory=EnvironmentalLoad)
+    obstacles: tuple[Rectangle, ...] = ()
+    motions: tuple[ObstacleMotion, ...] = ()
+    obstacle_report_period_s: float = 1.0
+    thruster_outages: tuple[ThrusterOutage, ...] = ()
+
+    def __post_init__(self) -> None:
+        if len(self.start) != 3 or not all(math.isfinite(v) for v in self.start):
+            raise ValueError(f"start must be a finite (x, y, psi), got {self.start!r}")
+        for motion in self.motions:
+            if not 0 <= motion.index < len(self.obstacles):
+                raise ValueError(f"obstacle motion names obstacle {motion.index!r}, "
+                                 f"but there are {len(self.obstacles)}")
+        if not self.obstacle_report_period_s > 0:
+            raise ValueError("obstacle_report_period_s must be positive, "
+                             f"got {self.obstacle_report_period_s!r}")
+
+
+class _Inbox:
+    """Samples produced by the world and not yet polled by the stack."""
+
+    def __init__(self) -> None:
+        self.poses: list[PoseSample] = []
+        self.imus: list[ImuSample] = []
+
+
+class SimPoseSource:
+    """Pose samples from the simulated motion-capture system."""
+
+    def __init__(self, inbox: _Inbox) -> None:
+        self._inbox = inbox
+
+    def poll(self) -> list[PoseSample]:
+        """Return the poses delivered since the last call, oldest first."""
+        out, self._inbox.poses = self._inbox.poses, []
+        return out
+
+
+class SimImuSource:
+    """IMU samples from the simulated IMU."""
+
+    def __init__(self, inbox: _Inbox) -> None:
+        self._inbox = inbox
+
+    def poll(self) -> list[ImuSample]:
+        """Return the IMU samples delivered since the last call, oldest first."""
+        out, self._inbox.imus = self._inbox.imus, []
+        return out
+
+
+class SimObstacleSource:
+    """The obstacle layout over simulated time, reported at a fixed period while moving."""
+
+    def __init__(self, world: SimWorld) -> None:
+        self._world = world
+        self._layout = ObstacleLayout(0, world.config.obstacles)
+
+    def latest(self) -> ObstacleLayout:
+        """Return the newest reported layout (a new object only when it changed)."""
+        cfg = self._world.config
+        period_ns = round(cfg.obstacle_report_period_s * NS_PER_S)
+        t_ns = (self._world.clock.now_ns() // period_ns) * period_ns
+        if not cfg.motions or t_ns == self._layout.t_ns:
+            return self._layout
+        obstacles = list(cfg.obstacles)
+        for motion in cfg.motions:
+            dx, dy = motion.offset_m(t_ns / NS_PER_S)
+            obstacles[motion.index] = cfg.obstacles[motion.index].shifted(dx, dy)
+        if tuple(obstacles) != self._layout.obstacles:
+            self._layout = ObstacleLayout(t_ns, tuple(obstacles))
+        return self._layout
+
+
+class SimThrusterSink:
+    """Hands thruster commands to the simulated plant."""
+
+    def __init__(self, world: SimWorld) -> None:
+        self._world = world
+
+    def send(self, command: ThrusterCommand) -> None:
+        """Set the plant's command setpoint; fails inside a scheduled outage."""
+        t_s = self._world.clock.now_ns() / NS_PER_S
+        for outage in self._world.config.thruster_outages:
+            if outage.start_s <= t_s < outage.stop_s:
+                raise ThrusterSinkError(f"simulated thruster link outage at t={t_s:.2f} s")
+        self._world.u_set[:] = (command.tunnel, command.port, command.starboard)
+        self._world.alpha_set[:] = (command.port_angle_rad, command.starboard_angle_rad)
+
+
+class SimWorld:
+    """The simulated C/S Voyager in its arena, seen through the adapters.
+
+    Args:
+        config: The world: start pose, seed, models and faults.
+        max_duration_s: Longest run this world supports (sizes the load series).
+    """
+
+    def __init__(self, config: SimConfig, max_duration_s: float = 900.0) -> None:
+        self.config = config
+        vessel = Vessel(config.vessel, config.dt_s, config.integrator)
+        self._m_inv, self._coef = vessel.params.kernel_arrays()
+        self._tp = config.thrusters.as_array()
+        self._dt_ns = round(config.dt_s * NS_PER_S)
+        n_steps = math.ceil(max_duration_s / config.dt_s) + 1
+        self._load = np.ascontiguousarray(config.load.series(n_steps, config.dt_s))
+        self.state = np.zeros(N_PLANT)
+        self.state[P_ETA : P_ETA + 3] = config.start
+        self.state[P_ALPHA : P_ALPHA + 2] = (math.pi / 2, -math.pi / 2)
+        self.u_set = np.zeros(3)
+        self.alpha_set = np.array([math.pi / 2, -math.pi / 2])
+        self._step = 0
+        self._pose_every = self._every(config.pose.rate_hz)
+        self._imu_every = self._every(config.imu.rate_hz)
+        # Separate streams per sensor, all derived from the world's seed.
+        seeds = np.random.SeedSequence(config.seed).generate_state(2)
+        self._pose_sensor = SimulatedPoseSensor(config.pose, seed=int(seeds[0]))
+        self._imu = SimulatedImu(config.imu, seed=int(seeds[1]))
+        self._inbox = _Inbox()
+        self._truth: list[FloatArray] = []
+        self.clock = SimClock(0, self._advance)
+        self.pose = SimPoseSource(self._inbox)
+        self.imu = SimImuSource(self._inbox)
+        self.obstacles = SimObstacleSource(self)
+        self.thrusters = SimThrusterSink(self)
+
+    def _every(self, rate_hz: float) -> int:
+        steps = round(1.0 / (rate_hz * self.config.dt_s))
+        if steps < 1 or abs(steps * rate_hz * self.config.dt_s - 1.0) > 1e-6:
+            raise ValueError(f"sensor rate {rate_hz!r} Hz is not a whole number of "
+                             f"physics steps of {self.config.dt_s!r} s")
+        return steps
+
+    @property
+    def eta(self) -> FloatArray:
+        """The true pose (x, y, psi), shape (3,)."""
+        return self.state[P_ETA : P_ETA + 3].copy()
+
+    def truth(self) -> FloatArray:
+        """Return the true trajectory so far, shape (N, 1 + N_TRACE): t_s, eta, nu, nu_dot, tau."""
+        if not self._truth:
+            return np.zeros((0, 1 + N_TRACE))
+        return np.concatenate(self._truth)
+
+    def _advance(self, _t_from_ns: int, t_to_ns: int) -> None:
+        first = self._step
+        last = t_to_ns // self._dt_ns
+        n = last - first
+        if n <= 0:
+            return
+        if last >= len(self._load):
+            raise RuntimeError(f"simulated world ran past its maximum duration at t={t_to_ns} ns")
+        trace = np.empty((n, N_TRACE))
+        plant_advance(self._m_inv, self._coef, self._tp, int(self.config.integrator),
+                      self.config.dt_s, self.state, self.u_set, self.alpha_set,
+                      self._load[first:last], trace)
+        for i in range(n):
+            k = first + i
+            t_ns = k * self._dt_ns
+            if k % self._pose_every == 0:
+                pose = self._pose_sensor.measure(t_ns, trace[i, TR_ETA : TR_ETA + 3])
+                if pose is not None:
+                    self._inbox.poses.append(pose)
+            if k % self._imu_every == 0:
+                self._inbox.imus.append(self._imu.measure(
+                    t_ns, trace[i, TR_NU : TR_NU + 3], trace[i, TR_NU_DOT : TR_NU_DOT + 3]))
+        times = (np.arange(first, last) * self.config.dt_s)[:, None]
+        self._truth.append(np.hstack([times, trace]))
+        self._step = last

@@ -1,0 +1,77 @@
+"""`hil run [SCENARIO]`: dock the simulated vessel, record the run, print a summary.
+
+With no arguments it docks the simulated C/S Voyager in the paper's scenario,
+records every message as a rosbag2 (MCAP) directory under `runs/`, and prints
+the summary; `--json` adds the same as one JSON object on the last line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from pathlib import Path
+
+HELP = "dock the vessel in simulation (or over ROS 2), record the run and summarize it"
+
+
+def _start(text: str) -> tuple[float, float, float]:
+    try:
+        x, y, psi = (float(v) for v in text.split(","))
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(
+            f"--start needs X,Y,PSI in metres and degrees, got {text!r}") from err
+    return (x, y, math.radians(psi))
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Declare the command's arguments."""
+    parser.add_argument("scenario", nargs="?", default="paper", metavar="SCENARIO",
+                        help="packaged name (paper, coarse) or a .toml path (default: paper)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the simulated world")
+    parser.add_argument("--start", type=_start, default=None, metavar="X,Y,PSI_DEG",
+                        help="start pose (m, m, deg); default: right of the arena, bow up")
+    parser.add_argument("--backend", choices=("sim",), default="sim",
+                        help="world to run in (the vessel's ROS entry point is `hil vessel`)")
+    parser.add_argument("--out", type=Path, default=None, metavar="DIR",
+                        help="bag directory to create (default: runs/<scenario>-<time>)")
+    parser.add_argument("--no-record", action="store_true", help="keep the run in memory only")
+    parser.add_argument("--max-duration", type=float, default=600.0, metavar="S",
+                        help="give up after this many simulated seconds")
+    parser.add_argument("--json", action="store_true",
+                        help="end with the summary as one JSON object on the last line")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run, print the summary; exit 0 when docked, 1 when not, 2 on bad input."""
+    from rich.console import Console
+
+    from hil.controllers.symbolic import SymbolicError
+    from hil.replay.errors import ReplayError
+    from hil.runtime.loop import LoopConfig
+    from hil.runtime.sim_run import SimRunSpec, run_in_sim
+    from hil.scenario import ScenarioError, load_scenario
+
+    console = Console(stderr=args.json)
+    try:
+        name = load_scenario(args.scenario).name
+    except ScenarioError as err:
+        print(f"hil run: {err}", file=sys.stderr)
+        return 2
+    out = None
+    if not args.no_record:
+        stamp = time.strftime("%Y%m%d-%H%M%S")
+        out = args.out or Path("runs") / f"{name}-seed{args.seed}-{stamp}"
+    spec = SimRunSpec(scenario=args.scenario, seed=args.seed, start=args.start, out_dir=out,
+                      loop=LoopConfig(max_duration_s=args.max_duration))
+    try:
+        with console.status(f"docking in the {name} scenario (seed {args.seed})..."):
+            summary = run_in_sim(spec)
+    except (ScenarioError, SymbolicError, ReplayError, ValueError) as err:
+        print(f"hil run: {err}", file=sys.stderr)
+        return 2
+    summary.render(console)
+    if args.json:
+        print(summary.to_json())
+    return 0 if summary.docked else 1

@@ -1,0 +1,174 @@
+"""Wire the stack's components behind the runtime's protocols.
+
+The observer (EKF), the velocity PID with thrust allocation, and the symbolic
+controller with its re-synthesis each get a thin adapter here, so the loop in
+:mod:`hil.runtime.loop` sees only :mod:`hil.runtime.stack`'s protocols.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hil.adapters.samples import ImuSample, ObstacleLayout, PoseSample, Rectangle, ThrusterCommand
+from hil.controllers.allocation import MinimumMagnitudeAzimuthAllocator
+from hil.controllers.observer import Ekf, ObserverStatus
+from hil.controllers.pid import VelocityPid
+from hil.controllers.symbolic import Controller, NoWinningSetError, Synthesizer, cost
+from hil.runtime.stack import LowLevelOutput
+from hil.scenario import Obstacle, Rect, Scenario
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+# A gated yaw rate is not a broken sample (robot_localization drops it quietly), and an
+# IMU sample before the first pose has nothing to update yet.
+_IMU_ACCEPTED = {ObserverStatus.FUSED, ObserverStatus.GATED, ObserverStatus.NOT_INITIALIZED}
+_POSE_ACCEPTED = {ObserverStatus.FUSED, ObserverStatus.RESET}
+
+
+class EkfObserver:
+    """The EKF behind the runtime's :class:`~hil.runtime.stack.Observer` protocol."""
+
+    def __init__(self, ekf: Ekf | None = None) -> None:
+        self.ekf = ekf or Ekf()
+
+    def update_pose(self, sample: PoseSample) -> bool:
+        """Fuse a pose; False when the filter refused it."""
+        return self.ekf.process_pose(sample) in _POSE_ACCEPTED
+
+    def update_imu(self, sample: ImuSample) -> bool:
+        """Take an IMU sample; False when the filter refused it."""
+        return self.ekf.process_imu(sample) in _IMU_ACCEPTED
+
+    def estimate(self) -> tuple[FloatArray, FloatArray] | None:
+        """Return (eta, nu) at the newest fused sample; None before the first pose.
+
+        With the IMU at 100 Hz the filter time trails a 20-Hz tick by at most one
+        sample period (10 ms), so no extra prediction is made.
+        """
+        if not self.ekf.initialized:
+            return None
+        estimate = self.ekf.estimate()
+        return estimate.eta, estimate.nu
+
+
+class PidAllocator:
+    """Velocity PID and thrust allocation as one low-level step.
+
+    Args:
+        pid: The velocity controller (its `dt_s` must be the loop period).
+        allocator: The thrust allocator.
+    """
+
+    def __init__(self, pid: VelocityPid, allocator: MinimumMagnitudeAzimuthAllocator) -> None:
+        self.pid = pid
+        self.allocator = allocator
+
+    def step(self, nu_ref: FloatArray, nu_hat: FloatArray, t_ns: int) -> LowLevelOutput:
+        """Return the force demand and the commands that realize it."""
+        output = self.pid.command(nu_ref, nu_hat)
+        result = self.allocator.allocate(output.tau_n)
+        self.pid.update(nu_ref, nu_hat, output, result.achieved_n)
+        u, alpha = result.commands, result.angles_rad
+        command = ThrusterCommand(t_ns, float(u[0]), float(u[1]), float(u[2]),
+                                  float(alpha[0]), float(alpha[1]))
+        return LowLevelOutput(output.tau_n, command)
+
+    def reset(self) -> None:
+        """Forget the integrator and the allocator's null-space state."""
+        self.pid.reset()
+        self.allocator.reset()
+
+
+class SymbolicAdapter:
+    """A synthesized controller behind the runtime's SymbolicController protocol."""
+
+    def __init__(self, controller: Controller) -> None:
+        self.controller = controller
+        grid = controller.grid
+        self._strides = (grid.ny * grid.npsi, grid.npsi, 1)
+
+    @property
+    def inputs(self) -> FloatArray:
+        """The input grid, shape (n_inputs, 3)."""
+        return self.controller.inputs
+
+    def locate(self, state: FloatArray) -> int:
+        """Return the flat (C-order) cell index of `state`, -1 outside the grid."""
+        cell = self.controller.grid.cell_of(state)
+        if cell is None:
+            return -1
+        return sum(c * s for c, s in zip(cell, self._strides, strict=True))
+
+    def value(self, state: FloatArray) -> float:
+        """Return the value at `state` (inf outside the winning set)."""
+        return self.controller.value(state)
+
+    def safe_input_indices(self, state: FloatArray) -> IntArray:
+        """Return the input indices of every safe input at `state`, shape (k,)."""
+        cell = self.controller.grid.cell_of(state)
+        if cell is None:
+            return np.zeros(0, dtype=np.int64)
+        return self.controller.safe_input_indices_at(cell).astype(np.int64)
+
+
+def select_index(safe_inputs: FloatArray, previous: FloatArray) -> int:
+    """Return the row of `safe_inputs` (k, 3) that minimizes the paper's cost J."""
+    return int(np.argmin(cost(safe_inputs, previous)))
+
+
+def obstacles_from_layout(scenario: Scenario, layout: ObstacleLayout) -> tuple[Obstacle, ...]:
+    """Turn a reported layout into scenario obstacles with the scenario's inflation.
+
+    Obstacle n keeps the name and inflation of the scenario's obstacle n; extra
+    obstacles take the largest inflation of the scenario.
+    """
+    default = max((o.inflation_m for o in scenario.obstacles), default=0.0)
+    out = []
+    for n, rect in enumerate(layout.obstacles):
+        known = scenario.obstacles[n] if n < len(scenario.obstacles) else None
+        out.append(Obstacle(
+            name=known.name if known else f"obstacle{n + 1}",
+            shape=Rect(rect.x_min_m, rect.x_max_m, rect.y_min_m, rect.y_max_m),
+            inflation_m=known.inflation_m if known else default))
+    return tuple(out)
+
+
+def layout_from_scenario(scenario: Scenario, t_ns: int = 0) -> ObstacleLayout:
+    """Return the scenario's real obstacles as a layout (axis-aligned bounding boxes)."""
+    rects = []
+    for obstacle in scenario.obstacles:
+        v = obstacle.shape.vertices()
+        rects.append(Rectangle(float(v[:, 0].min()), float(v[:, 0].max()),
+                               float(v[:, 1].min()), float(v[:, 1].max())))
+    return ObstacleLayout(t_ns, tuple(rects))
+
+
+@dataclass
+class LayoutSolver:
+    """Synthesizes a controller for a reported layout, reusing the grid's tables.
+
+    Attributes:
+        scenario: The scenario (grid, inputs, target, inflation).
+        synthesizer: Holds the abstraction tables, built once per grid.
+    """
+
+    scenario: Scenario
+    synthesizer: Synthesizer
+
+    def __call__(self, layout: ObstacleLayout) -> SymbolicAdapter:
+        """Return the controller for `layout`.
+
+        Raises:
+            NoWinningSetError: No cell outside the target is winning.
+        """
+        scenario = self.scenario.with_obstacles(obstacles_from_layout(self.scenario, layout))
+        controller = self.synthesizer.solve_sets(scenario.inflated_obstacles(),
+                                                 scenario.abstract_target())
+        if not controller.has_winning_start:
+            raise NoWinningSetError(
+                f"no winning cell outside the target for the layout at t={layout.t_ns} ns")
+        return SymbolicAdapter(controller)
