@@ -31,6 +31,7 @@ from hil.runtime.assembly import (
     layout_from_scenario,
     select_index,
 )
+from hil.runtime.clearance import hull_clearance_series
 from hil.runtime.loop import LoopConfig, RunStats, Runtime, World
 from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer
 from hil.runtime.stack import RunLog, SymbolicController
@@ -83,26 +84,6 @@ def scenario_hash(scenario: Scenario) -> str:
     return hashlib.sha256(repr(scenario).encode()).hexdigest()[:16]
 
 
-def _clearance(scenario: Scenario, eta: FloatArray, every: int = 5) -> tuple[float, int]:
-    """Return the least hull clearance along a trajectory (N, 3), and contact steps.
-
-    Every `every`-th step is checked (0.05 s at 100 Hz: the hull moves at most
-    1 cm in between), and every step within 0.1 m of contact.
-    """
-    coarse = np.array([scenario.hull_clearance_m(*row) for row in eta[::every]])
-    if len(coarse) == 0:
-        return math.inf, 0
-    near = np.flatnonzero(coarse < 0.1)
-    contacts = 0
-    least = float(coarse.min())
-    for idx in near:
-        for row in eta[idx * every : (idx + 1) * every]:
-            c = scenario.hull_clearance_m(*row)
-            least = min(least, c)
-            contacts += int(c <= 0.0)
-    return least, contacts
-
-
 def build_runtime(
     scenario: Scenario, world: World, log: RunLog, loop: LoopConfig,
     synthesizer: Synthesizer, mode: ResynthesisMode,
@@ -123,8 +104,13 @@ def synthesizer_for(scenario: Scenario, cache_dir: Path | None = None) -> Synthe
     return Synthesizer(tables)
 
 
-def run_in_sim(spec: SimRunSpec) -> RunSummary:
-    """Run one docking in simulation and summarize it (see module docstring)."""
+def run_in_sim(spec: SimRunSpec, log: RunLog | None = None) -> RunSummary:
+    """Run one docking in simulation and summarize it (see module docstring).
+
+    Args:
+        spec: The run.
+        log: Where to record when `spec.out_dir` is None (default: a fresh MemoryLog).
+    """
     wall_start = time.perf_counter()
     scenario = load_scenario(spec.scenario)
     start = spec.start if spec.start is not None else default_start(scenario)
@@ -137,13 +123,12 @@ def run_in_sim(spec: SimRunSpec) -> RunSummary:
     world = World(sim.clock, sim.pose, sim.imu, sim.obstacles, sim.thrusters)
     synthesizer = synthesizer_for(scenario, spec.cache_dir)
     recorder: Recorder | None = None
-    log: RunLog
     if spec.out_dir is not None:
         recorder = Recorder(spec.out_dir, RunInfo.current(spec.scenario, scenario_hash(scenario),
                                                           spec.seed, backend="sim"))
         recorder.open()
         log = recorder
-    else:
+    elif log is None:
         log = MemoryLog()
     try:
         runtime = build_runtime(scenario, world, log, spec.loop, synthesizer,
@@ -160,7 +145,9 @@ def summarize(spec: SimRunSpec, scenario: Scenario, sim: SimWorld, stats: RunSta
     """Judge a finished simulated run by the world's ground truth."""
     truth = sim.truth()
     eta = truth[:, 1 + TR_ETA : 1 + TR_ETA + 3]
-    least, contacts = _clearance(scenario, eta)
+    clearance = hull_clearance_series(scenario, eta)
+    least = float(clearance.min()) if len(clearance) else math.inf
+    contacts = int(np.count_nonzero(clearance <= 0.0))
     if stats.t_ns:
         rows = np.minimum(np.asarray(stats.t_ns) // round(sim.config.dt_s * NS_PER_S),
                           len(truth) - 1)
