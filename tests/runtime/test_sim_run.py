@@ -43,10 +43,12 @@ def test_docks_without_contact_and_the_bag_holds_every_decision(cache_dir: Path,
     assert summary.hull_contacts == 0
     assert summary.min_clearance_m > 0.0
     assert summary.not_winning_decisions == 0
-    assert summary.docking_time_s is not None and 20.0 < summary.docking_time_s < 240.0
+    assert summary.docking_time_s is not None
+    assert 20.0 < summary.docking_time_s < 240.0
     with BagReader(out) as reader:
         decisions = [r for _, _, r in reader.records() if isinstance(r, Decision)]
-        assert reader.info.run is not None and reader.info.run.seed == 1
+        assert reader.info.run is not None
+        assert reader.info.run.seed == 1
     assert len(decisions) == summary.decisions
     assert all(d.winning for d in decisions)
     # Every chosen input was one of the safe inputs at its decision, until the target.
@@ -74,9 +76,11 @@ def test_pose_outage_zeroes_thrust_then_resumes(cache_dir: Path) -> None:
     lost_t = next(t for t, _, c, _ in log.events if c == EventCode.POSE_LOST.value)
     back_t = next(t for t, _, c, _ in log.events if c == EventCode.POSE_BACK.value)
     held = [c for c in log.thruster_commands if lost_t <= c.t_ns < back_t]
-    assert held and all(c.tunnel == c.port == c.starboard == 0.0 for c in held)
+    assert held
+    assert all(c.tunnel == c.port == c.starboard == 0.0 for c in held)
     assert summary.pose_losses == 1
-    assert summary.docked and summary.hull_contacts == 0
+    assert summary.docked
+    assert summary.hull_contacts == 0
 
 
 def test_thruster_link_failure_is_logged_and_the_run_goes_on(cache_dir: Path) -> None:
@@ -84,7 +88,8 @@ def test_thruster_link_failure_is_logged_and_the_run_goes_on(cache_dir: Path) ->
     summary = run_in_sim(_spec(cache_dir, seed=4,
                                thruster_outages=(ThrusterOutage(8.0, 8.5),)), log=log)
     assert log.event_codes().count(EventCode.THRUSTER_FAILURE.value) == 10  # 0.5 s at 20 Hz
-    assert summary.docked and summary.hull_contacts == 0
+    assert summary.docked
+    assert summary.hull_contacts == 0
 
 
 def test_moving_obstacle_triggers_resynthesis_and_stays_clear(cache_dir: Path) -> None:
@@ -94,7 +99,8 @@ def test_moving_obstacle_triggers_resynthesis_and_stays_clear(cache_dir: Path) -
     summary = run_in_sim(_spec(cache_dir, seed=5, motions=(motion,)), log=log)
     assert summary.resyntheses >= 6
     assert len(log.layouts) >= 6
-    assert summary.docked and summary.hull_contacts == 0
+    assert summary.docked
+    assert summary.hull_contacts == 0
 
 
 def test_layout_without_solution_stops_the_vessel(cache_dir: Path) -> None:
@@ -108,7 +114,8 @@ def test_layout_without_solution_stops_the_vessel(cache_dir: Path) -> None:
     assert not summary.docked
     failed_t = next(t for t, _, c, _ in log.events if c == EventCode.SYNTHESIS_FAILED.value)
     refs = [nu for t, nu in log.velocity_references if t > failed_t + 2_000_000_000]
-    assert refs and all(np.all(nu == 0.0) for nu in refs)
+    assert refs
+    assert all(np.all(nu == 0.0) for nu in refs)
     assert summary.hull_contacts == 0
 
 
