@@ -13,6 +13,7 @@ from __future__ import annotations
 import contextlib
 import math
 import threading
+import time
 from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
@@ -248,25 +249,39 @@ class RosThrusterSink:
 
 
 class RosClock:
-    """The node's clock: wall time, or `/clock` when `use_sim_time` is set."""
+    """The node's clock: wall time, or `/clock` when `use_sim_time` is set.
 
-    def __init__(self, node: Any, context: Any) -> None:
+    Sleeping polls the clock, so a loop on simulated time follows `/clock` at any
+    speed and never hangs if `/clock` stops: after `stall_timeout_s` of wall time
+    without progress it returns and lets the loop notice the stale feeds.
+    """
+
+    def __init__(self, node: Any, poll_s: float = 0.0005, stall_timeout_s: float = 2.0) -> None:
         self._node = node
-        self._context = context
+        self._poll_s = poll_s
+        self._stall_timeout_s = stall_timeout_s
 
     def now_ns(self) -> int:
         """Return the node clock's time (ns)."""
         return int(self._node.get_clock().now().nanoseconds)
 
     def sleep_until(self, t_ns: int) -> None:
-        """Sleep on the node clock until `t_ns` (follows `/clock` in sim time)."""
-        from rclpy.time import Time
+        """Sleep until the node clock reaches `t_ns` (follows `/clock` in sim time)."""
+        last = self.now_ns()
+        last_progress = time.monotonic()
+        while True:
+            now = self.now_ns()
+            if now >= t_ns:
+                return
+            if now != last:
+                last, last_progress = now, time.monotonic()
+            elif time.monotonic() - last_progress > self._stall_timeout_s:
+                return
+            remaining_s = (t_ns - now) / NS_PER_S
+            time.sleep(min(self._poll_s, remaining_s) if self._use_poll() else remaining_s)
 
-        clock = self._node.get_clock()
-        if t_ns > self.now_ns():
-            clock.sleep_until(
-                Time(nanoseconds=int(t_ns), clock_type=clock.clock_type), context=self._context
-            )
+    def _use_poll(self) -> bool:
+        return bool(self._node.get_clock().ros_time_is_active)
 
 
 class RosWorld:
@@ -338,7 +353,7 @@ class RosWorld:
             for name in ("tunnel", "port", "starboard")
         }
         self.thruster_sink = RosThrusterSink(publishers, Wrench)
-        self.clock = RosClock(self._node, self._context)
+        self.clock = RosClock(self._node)
         self._executor = SingleThreadedExecutor(context=self._context)
         self._executor.add_node(self._node)
         self._thread = threading.Thread(target=self._spin, name="hil-ros", daemon=True)

@@ -113,6 +113,8 @@ class RunStats:
     `nu_hat` (3,), `nu_ref` (3,).
     """
 
+    start_ns: int = 0
+    end_ns: int = 0
     decisions: int = 0
     resyntheses: int = 0
     synthesis_seconds: list[float] = field(default_factory=list)
@@ -194,6 +196,7 @@ class Runtime:
         self._previous_input = np.zeros(3)
         self._consecutive_sink_failures = 0
         self._start_ns = world.clock.now_ns()
+        self.stats.start_ns = self._start_ns
         self._target_since_ns = 0
         self._stop_requested: str | None = None
 
@@ -213,7 +216,8 @@ class Runtime:
                 next_tick += self.config.period_ns
                 clock.sleep_until(next_tick)
         finally:
-            self._send(ThrusterCommand.zero(clock.now_ns()))
+            self.stats.end_ns = clock.now_ns()
+            self._send(ThrusterCommand.zero(self.stats.end_ns))
         return self.stats
 
     def tick(self, t_ns: int) -> None:

@@ -31,11 +31,10 @@ from hil.runtime.assembly import (
     layout_from_scenario,
     select_index,
 )
-from hil.runtime.clearance import hull_clearance_series
 from hil.runtime.loop import LoopConfig, RunStats, Runtime, World
 from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer
 from hil.runtime.stack import RunLog, SymbolicController
-from hil.runtime.summary import RunSummary, TrackingError
+from hil.runtime.summary import RunSummary, summarize_run
 from hil.runtime.trace import MemoryLog
 from hil.scenario import Scenario, load_scenario
 from hil.sim.plant import TR_ETA, TR_NU
@@ -144,30 +143,10 @@ def summarize(spec: SimRunSpec, scenario: Scenario, sim: SimWorld, stats: RunSta
               wall_s: float) -> RunSummary:
     """Judge a finished simulated run by the world's ground truth."""
     truth = sim.truth()
-    eta = truth[:, 1 + TR_ETA : 1 + TR_ETA + 3]
-    clearance = hull_clearance_series(scenario, eta)
-    least = float(clearance.min()) if len(clearance) else math.inf
-    contacts = int(np.count_nonzero(clearance <= 0.0))
-    if stats.t_ns:
-        rows = np.minimum(np.asarray(stats.t_ns) // round(sim.config.dt_s * NS_PER_S),
-                          len(truth) - 1)
-        tracking = TrackingError.between(truth[rows, 1 + TR_NU : 1 + TR_NU + 3],
-                                         np.asarray(stats.nu_ref))
-    else:
-        tracking = TrackingError.between(np.zeros((0, 3)), np.zeros((0, 3)))
-    synth = stats.synthesis_seconds or [math.nan]
-    return RunSummary(
-        scenario=spec.scenario, seed=spec.seed, backend="sim",
-        docked=stats.docked_ns is not None, end_reason=stats.end_reason,
-        docking_time_s=None if stats.target_reached_ns is None
-        else stats.target_reached_ns / NS_PER_S,
-        duration_s=sim.clock.now_ns() / NS_PER_S, wall_s=wall_s,
-        min_clearance_m=least, hull_contacts=contacts, decisions=stats.decisions,
-        resyntheses=stats.resyntheses, synthesis_mean_s=float(np.mean(synth)),
-        synthesis_max_s=float(np.max(synth)),
-        not_winning_decisions=stats.not_winning_decisions,
-        rejected_samples=stats.rejected_samples, pose_losses=stats.pose_losses,
-        tracking=tracking, log=None if spec.out_dir is None else str(spec.out_dir),
-    )
-
-
+    rows = np.minimum(np.asarray(stats.t_ns, dtype=np.int64) // round(sim.config.dt_s * NS_PER_S),
+                      max(len(truth) - 1, 0))
+    return summarize_run(
+        scenario=scenario, scenario_name=spec.scenario, seed=spec.seed,
+        backend="sim", stats=stats, trajectory=truth[:, 1 + TR_ETA : 1 + TR_ETA + 3],
+        velocity=truth[rows, 1 + TR_NU : 1 + TR_NU + 3].reshape(-1, 3), wall_s=wall_s,
+        log=None if spec.out_dir is None else str(spec.out_dir))

@@ -18,6 +18,10 @@ from numpy.typing import NDArray
 from rich.console import Console
 from rich.table import Table
 
+from hil.runtime.clearance import hull_clearance_series
+from hil.runtime.loop import RunStats
+from hil.scenario import Scenario
+
 FloatArray = NDArray[np.float64]
 
 PAPER_TRACKING_ERROR = (0.00768, 0.00431, 0.62108)
@@ -163,3 +167,55 @@ class RunSummary:
         console.print(table)
         if self.log is not None:
             console.print(f"log: {Path(self.log)}")
+
+
+def summarize_run(
+    *,
+    scenario: Scenario,
+    scenario_name: str,
+    seed: int | None,
+    backend: str,
+    stats: RunStats,
+    trajectory: FloatArray,
+    velocity: FloatArray,
+    wall_s: float,
+    log: str | None,
+) -> RunSummary:
+    """Summarize a finished run.
+
+    Args:
+        scenario: The scenario (real obstacles and hull for the clearance).
+        scenario_name: Name or path as the user gave it.
+        seed: Seed of the simulated world (None on the vessel).
+        backend: "sim" or "ros".
+        stats: The loop's counters and per-tick series.
+        trajectory: Poses (x, y, psi) to judge clearance on, shape (N, 3) (the
+            simulator's truth at every physics step, or the estimates on the vessel).
+        velocity: Body velocity at each tick of `stats`, shape (len(stats.t_ns), 3).
+        wall_s: Wall-clock duration (s).
+        log: Where the run is recorded.
+    """
+    clearance = hull_clearance_series(scenario, trajectory)
+    synth = stats.synthesis_seconds or [math.nan]
+    reached = stats.target_reached_ns
+    return RunSummary(
+        scenario=scenario_name,
+        seed=seed,
+        backend=backend,
+        docked=stats.docked_ns is not None,
+        end_reason=stats.end_reason,
+        docking_time_s=None if reached is None else (reached - stats.start_ns) / 1e9,
+        duration_s=(stats.end_ns - stats.start_ns) / 1e9,
+        wall_s=wall_s,
+        min_clearance_m=float(clearance.min()) if len(clearance) else math.inf,
+        hull_contacts=int(np.count_nonzero(clearance <= 0.0)),
+        decisions=stats.decisions,
+        resyntheses=stats.resyntheses,
+        synthesis_mean_s=float(np.mean(synth)),
+        synthesis_max_s=float(np.max(synth)),
+        not_winning_decisions=stats.not_winning_decisions,
+        rejected_samples=stats.rejected_samples,
+        pose_losses=stats.pose_losses,
+        tracking=TrackingError.between(velocity, np.asarray(stats.nu_ref).reshape(-1, 3)),
+        log=log,
+    )
