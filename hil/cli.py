@@ -31,6 +31,8 @@ class CommandModule(Protocol):
 # name on the command line -> module under hil.commands
 COMMANDS: dict[str, str] = {
     "run": "run",
+    "vessel": "vessel",
+    "sim-vessel": "sim_vessel",
     "synth": "synth",
     "info": "info",
 }

@@ -200,8 +200,11 @@ class SimWorld:
         self._m_inv, self._coef = vessel.params.kernel_arrays()
         self._tp = config.thrusters.as_array()
         self._dt_ns = round(config.dt_s * NS_PER_S)
-        n_steps = math.ceil(max_duration_s / config.dt_s) + 1
-        self._load = np.ascontiguousarray(config.load.series(n_steps, config.dt_s))
+        self._max_steps = math.ceil(max_duration_s / config.dt_s) + 1
+        # A zero load (the default) needs no series, so a long-running node costs no memory.
+        self._load: FloatArray | None = None
+        if config.load != EnvironmentalLoad():
+            self._load = np.ascontiguousarray(config.load.series(self._max_steps, config.dt_s))
         self.state = np.zeros(N_PLANT)
         self.state[P_ETA : P_ETA + 3] = config.start
         self.state[P_ALPHA : P_ALPHA + 2] = (math.pi / 2, -math.pi / 2)
@@ -246,12 +249,12 @@ class SimWorld:
         n = last - first
         if n <= 0:
             return
-        if last >= len(self._load):
+        if last >= self._max_steps:
             raise RuntimeError(f"simulated world ran past its maximum duration at t={t_to_ns} ns")
+        load = np.zeros((n, 3)) if self._load is None else self._load[first:last]
         trace = np.empty((n, N_TRACE))
         plant_advance(self._m_inv, self._coef, self._tp, int(self.config.integrator),
-                      self.config.dt_s, self.state, self.u_set, self.alpha_set,
-                      self._load[first:last], trace)
+                      self.config.dt_s, self.state, self.u_set, self.alpha_set, load, trace)
         for i in range(n):
             k = first + i
             t_ns = k * self._dt_ns

@@ -25,7 +25,7 @@ from hil.adapters.interfaces import (
     ThrusterSink,
     ThrusterSinkError,
 )
-from hil.adapters.samples import ObstacleLayout, ThrusterCommand
+from hil.adapters.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
 from hil.replay.records import Decision, EventLevel
 from hil.runtime.events import EventCode
 from hil.runtime.resynthesis import Resynthesizer
@@ -257,18 +257,22 @@ class Runtime:
         self.log.event(t_ns, level, code.value, text)
 
     def _ingest(self, t_ns: int) -> None:
-        for pose in self.world.pose.poll():
-            self.log.pose(pose)
-            if self.observer.update_pose(pose):
-                self._last_pose_ns = (
-                    pose.t_ns if self._last_pose_ns is None else max(self._last_pose_ns, pose.t_ns)
-                )
+        # Fuse both feeds in measurement-time order: when the loop lags, draining all
+        # poses before all IMU samples would hand the filter IMU samples from its past.
+        samples: list[PoseSample | ImuSample] = [*self.world.pose.poll(), *self.world.imu.poll()]
+        samples.sort(key=lambda s: s.t_ns)
+        for sample in samples:
+            if isinstance(sample, PoseSample):
+                self.log.pose(sample)
+                if self.observer.update_pose(sample):
+                    last = self._last_pose_ns
+                    self._last_pose_ns = sample.t_ns if last is None else max(last, sample.t_ns)
+                else:
+                    self._reject(t_ns, f"pose at t={sample.t_ns} ns")
             else:
-                self._reject(t_ns, f"pose at t={pose.t_ns} ns")
-        for imu in self.world.imu.poll():
-            self.log.imu(imu)
-            if not self.observer.update_imu(imu):
-                self._reject(t_ns, f"imu at t={imu.t_ns} ns")
+                self.log.imu(sample)
+                if not self.observer.update_imu(sample):
+                    self._reject(t_ns, f"imu at t={sample.t_ns} ns")
 
     def _reject(self, t_ns: int, what: str) -> None:
         self.stats.rejected_samples += 1
