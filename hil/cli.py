@@ -31,6 +31,7 @@ class CommandModule(Protocol):
 # name on the command line -> module under hil.commands
 COMMANDS: dict[str, str] = {
     "run": "run",
+    "campaign": "campaign",
     "vessel": "vessel",
     "sim-vessel": "sim_vessel",
     "synth": "synth",
