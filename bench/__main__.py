@@ -10,6 +10,7 @@ import importlib
 import sys
 
 BENCHMARKS = {
+    "docking": "bench.docking",
     "lowlevel": "bench.lowlevel",
     "synthesis": "bench.synthesis",
     "recorder": "bench.recorder",
