@@ -12,6 +12,7 @@ import sys
 BENCHMARKS = {
     "docking": "bench.docking",
     "lowlevel": "bench.lowlevel",
+    "observer": "bench.observer",
     "synthesis": "bench.synthesis",
     "recorder": "bench.recorder",
 }

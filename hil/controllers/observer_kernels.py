@@ -1,0 +1,650 @@
+"""EKF event kernels: samples in any order, through a ring buffer of past priors.
+
+:func:`obs_init`, :func:`obs_imu` and :func:`obs_pose` work on an
+:class:`EkfArrays` bundle: the current estimate plus a ring buffer of the prior,
+the held accelerometer input and the measurements at each past sample time, so a
+late or out-of-order sample is fused at its own time stamp and the filter is
+re-run forward to the newest time (robot_localization's ``smooth_lagged_data``).
+They return an ``S_*`` status code and count every outcome in ``counters``.
+The math (predict, updates, state layout, parameter vector) is in
+:mod:`hil.controllers.observer_math`, the ring bookkeeping in
+:mod:`hil.controllers.observer_ring`; the names a caller needs are re-exported
+here, so a compiled caller imports this module only.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from hil.controllers.observer_math import (
+    I_BAX,
+    I_BAY,
+    I_BR,
+    I_PSI,
+    I_R,
+    I_U,
+    I_V,
+    I_X,
+    I_Y,
+    N_PARAMS,
+    N_STATE,
+    P_GATE_GYRO,
+    P_GATE_POSE,
+    P_GATE_RESET,
+    P_MAX_ACC,
+    P_MAX_DELAY,
+    P_MAX_POS,
+    P_MAX_RATE,
+    P_Q_BA,
+    P_Q_BR,
+    P_Q_R,
+    P_Q_UV,
+    P_R_GYRO,
+    P_R_PSI,
+    P_R_X,
+    P_R_Y,
+    P_RESTART_VAR_BA,
+    P_RESTART_VAR_BR,
+    P_RESTART_VAR_R,
+    P_RESTART_VAR_UV,
+    FloatArray,
+    _update_pose,
+    ekf_predict,
+    ekf_update_pose,
+    ekf_update_yaw_rate,
+)
+from hil.controllers.observer_ring import (
+    M_COUNT,
+    M_GATED_RUN,
+    M_INIT,
+    M_START,
+    NS_TO_S,
+    U_AX,
+    U_AY,
+    U_OWN,
+    Z_PSI,
+    Z_R,
+    Z_X,
+    Z_Y,
+    IntArray,
+    fuse_stored,
+    head_time,
+    insert_slot,
+    load_prior,
+    make_room,
+    oldest_usable,
+    prior_at,
+    propagate,
+    rerun,
+    slot_index,
+    store_prior,
+)
+from hil.geometry import wrap_angle
+from hil.jit import njit
+
+__all__ = [
+    "C_GYRO_GATED",
+    "C_IMU_ABSURD",
+    "C_IMU_DUPLICATE",
+    "C_IMU_FUSED",
+    "C_IMU_LATE",
+    "C_IMU_NONFINITE",
+    "C_IMU_TOO_OLD",
+    "C_NOT_INITIALIZED",
+    "C_POSE_ABSURD",
+    "C_POSE_DUPLICATE",
+    "C_POSE_FUSED",
+    "C_POSE_GATED",
+    "C_POSE_LATE",
+    "C_POSE_NONFINITE",
+    "C_POSE_RESET",
+    "C_POSE_TOO_OLD",
+    "I_BAX",
+    "I_BAY",
+    "I_BR",
+    "I_PSI",
+    "I_R",
+    "I_U",
+    "I_V",
+    "I_X",
+    "I_Y",
+    "M_COUNT",
+    "M_GATED_RUN",
+    "M_INIT",
+    "M_START",
+    "N_COUNTERS",
+    "N_PARAMS",
+    "N_STATE",
+    "P_GATE_GYRO",
+    "P_GATE_POSE",
+    "P_GATE_RESET",
+    "P_MAX_ACC",
+    "P_MAX_DELAY",
+    "P_MAX_POS",
+    "P_MAX_RATE",
+    "P_Q_BA",
+    "P_Q_BR",
+    "P_Q_R",
+    "P_Q_UV",
+    "P_RESTART_VAR_BA",
+    "P_RESTART_VAR_BR",
+    "P_RESTART_VAR_R",
+    "P_RESTART_VAR_UV",
+    "P_R_GYRO",
+    "P_R_PSI",
+    "P_R_X",
+    "P_R_Y",
+    "S_ABSURD",
+    "S_DUPLICATE",
+    "S_FUSED",
+    "S_GATED",
+    "S_NONFINITE",
+    "S_NOT_INITIALIZED",
+    "S_RESET",
+    "S_TOO_OLD",
+    "U_AX",
+    "U_AY",
+    "U_OWN",
+    "Z_PSI",
+    "Z_R",
+    "Z_X",
+    "Z_Y",
+    "EkfArrays",
+    "FloatArray",
+    "IntArray",
+    "allocate_arrays",
+    "ekf_predict",
+    "ekf_update_pose",
+    "ekf_update_yaw_rate",
+    "obs_imu",
+    "obs_init",
+    "obs_pose",
+    "obs_predicted",
+    "obs_time_ns",
+]
+
+# Counter indices (counters array, int64).
+C_POSE_FUSED = 0
+C_POSE_LATE = 1  # fused although stamped before the filter time
+C_POSE_NONFINITE = 2
+C_POSE_ABSURD = 3
+C_POSE_GATED = 4
+C_POSE_TOO_OLD = 5
+C_POSE_DUPLICATE = 6
+C_IMU_FUSED = 7
+C_IMU_LATE = 8
+C_IMU_NONFINITE = 9
+C_IMU_ABSURD = 10
+C_GYRO_GATED = 11
+C_IMU_TOO_OLD = 12
+C_IMU_DUPLICATE = 13
+C_NOT_INITIALIZED = 14
+C_POSE_RESET = 15  # filter restarted after P_GATE_RESET gated poses in a row
+N_COUNTERS = 16
+
+# Status codes returned by the event kernels.
+S_FUSED = 0
+S_NONFINITE = 1
+S_ABSURD = 2
+S_GATED = 3
+S_TOO_OLD = 4
+S_DUPLICATE = 5
+S_NOT_INITIALIZED = 6
+S_RESET = 7  # the pose restarted the filter (see _gated)
+
+
+class EkfArrays(NamedTuple):
+    """Every array the event kernels read or write; numba passes it as a tuple.
+
+    Attributes:
+        x: Posterior state at the filter time, shape (9,), ``I_*`` indexing.
+        P: Posterior covariance, shape (9, 9).
+        hist_t_ns: Time stamp of each ring slot (ns), shape (K,), int64.
+        hist_x: Prior state at each slot time (before its measurements), (K, 9).
+        hist_cov: Prior covariance at each slot time, (K, 9, 9).
+        hist_u: Accelerometer input held from each slot to the next, (K, 3):
+            (f_x, f_y) in m/s^2 and an "own sample" flag (1.0 or 0.0).
+        hist_z: Measurements stamped at each slot, (K, 4): pose (x, y, psi) and
+            yaw rate; NaN where the slot has none.
+        meta: Bookkeeping, (4,), int64: oldest slot, slot count, initialized,
+            poses gated in a row.
+        counters: Sample counters, (N_COUNTERS,), int64, ``C_*`` indexing.
+        params: Noise, gates and limits, (N_PARAMS,), ``P_*`` indexing.
+    """
+
+    x: FloatArray
+    P: FloatArray
+    hist_t_ns: IntArray
+    hist_x: FloatArray
+    hist_cov: FloatArray
+    hist_u: FloatArray
+    hist_z: FloatArray
+    meta: IntArray
+    counters: IntArray
+    params: FloatArray
+
+
+def allocate_arrays(params: FloatArray, history_len: int) -> EkfArrays:
+    """Allocate an uninitialized :class:`EkfArrays` with `history_len` ring slots.
+
+    Args:
+        params: Parameter vector, shape (N_PARAMS,) (copied).
+        history_len: Ring slots K (>= 2); each sample time takes one slot.
+
+    Returns:
+        Zeroed arrays; call :func:`obs_init` before feeding samples.
+    """
+    k = int(history_len)
+    return EkfArrays(
+        x=np.zeros(N_STATE),
+        P=np.zeros((N_STATE, N_STATE)),
+        hist_t_ns=np.zeros(k, dtype=np.int64),
+        hist_x=np.zeros((k, N_STATE)),
+        hist_cov=np.zeros((k, N_STATE, N_STATE)),
+        hist_u=np.zeros((k, 3)),
+        hist_z=np.full((k, 4), np.nan),
+        meta=np.zeros(4, dtype=np.int64),
+        counters=np.zeros(N_COUNTERS, dtype=np.int64),
+        params=np.array(params, dtype=np.float64, copy=True),
+    )
+
+
+@njit
+def obs_init(a: EkfArrays, t_ns: int, x0: FloatArray, P0: FloatArray) -> None:
+    """Start (or restart) the filter at `t_ns` with state x0 (9,) and covariance P0 (9, 9).
+
+    The history is cleared; the counters are kept.
+    """
+    a.meta[M_START] = 0
+    a.meta[M_COUNT] = 1
+    a.meta[M_INIT] = 1
+    a.meta[M_GATED_RUN] = 0
+    a.hist_t_ns[0] = t_ns
+    a.x[:] = x0
+    a.x[I_PSI] = wrap_angle(x0[I_PSI])
+    a.P[:, :] = P0
+    store_prior(a.hist_x, a.hist_cov, 0, a.x, a.P)
+    a.hist_u[0, :] = 0.0
+    a.hist_z[0, :] = np.nan
+
+
+@njit
+def obs_time_ns(a: EkfArrays) -> int:
+    """Return the filter time (ns): the stamp of the newest sample fused, or -1 before init."""
+    if a.meta[M_INIT] == 0:
+        return -1
+    return head_time(a.hist_t_ns, a.meta)
+
+
+@njit
+def obs_predicted(a: EkfArrays, t_ns: int, x_out: FloatArray, P_out: FloatArray) -> bool:
+    """Write the estimate extrapolated to `t_ns` into x_out (9,), P_out (9, 9); change nothing.
+
+    The held accelerometer input carries on from the filter time, as it would if
+    no sample arrived before `t_ns`: for a control step between samples.
+
+    Returns:
+        False (outputs untouched) before the filter starts or if `t_ns` is before
+        the filter time.
+    """
+    if a.meta[M_INIT] == 0:
+        return False
+    t_head = head_time(a.hist_t_ns, a.meta)
+    if t_ns < t_head:
+        return False
+    head = slot_index(a.meta, a.hist_t_ns.shape[0], a.meta[M_COUNT] - 1)
+    x_out[:] = a.x
+    P_out[:, :] = a.P
+    if t_ns > t_head:
+        dt_s = (t_ns - t_head) * NS_TO_S
+        ekf_predict(x_out, P_out, dt_s, a.hist_u[head, U_AX], a.hist_u[head, U_AY], a.params)
+    return True
+
+
+@njit
+def _gated(
+    x: FloatArray,
+    P: FloatArray,
+    ht: IntArray,
+    hx: FloatArray,
+    hc: FloatArray,
+    hu: FloatArray,
+    hz: FloatArray,
+    meta: IntArray,
+    c: IntArray,
+    prm: FloatArray,
+    x_m: float,
+    y_m: float,
+    psi: float,
+) -> int:
+    """Count a gated pose; after P_GATE_RESET in a row, restart the filter from this one.
+
+    Persistent disagreement between 1 mm poses and the prediction means the
+    prediction is wrong (a jump in accelerometer bias from tilt, a wrong start),
+    and gating on would let the dead reckoning run away. The restart sets eta to
+    the pose at the filter time (a late pose's age is ignored: at most the
+    latency's worth of motion), keeps nu and the biases, sets P to
+    diag(R_pose, restart variances of nu and the biases) and clears the history.
+    """
+    meta[M_GATED_RUN] += 1
+    limit = prm[P_GATE_RESET]
+    if limit <= 0.0 or meta[M_GATED_RUN] < limit:
+        c[C_POSE_GATED] += 1
+        return S_GATED
+    k_len = ht.shape[0]
+    head = slot_index(meta, k_len, meta[M_COUNT] - 1)
+    x[I_X] = x_m
+    x[I_Y] = y_m
+    x[I_PSI] = psi
+    for i in range(N_STATE):
+        for j in range(N_STATE):
+            P[i, j] = 0.0
+    P[I_X, I_X] = prm[P_R_X]
+    P[I_Y, I_Y] = prm[P_R_Y]
+    P[I_PSI, I_PSI] = prm[P_R_PSI]
+    P[I_U, I_U] = prm[P_RESTART_VAR_UV]
+    P[I_V, I_V] = prm[P_RESTART_VAR_UV]
+    P[I_R, I_R] = prm[P_RESTART_VAR_R]
+    P[I_BAX, I_BAX] = prm[P_RESTART_VAR_BA]
+    P[I_BAY, I_BAY] = prm[P_RESTART_VAR_BA]
+    P[I_BR, I_BR] = prm[P_RESTART_VAR_BR]
+    if head != 0:
+        ht[0] = ht[head]
+        for col in range(3):
+            hu[0, col] = hu[head, col]
+    for col in range(4):
+        hz[0, col] = np.nan
+    store_prior(hx, hc, 0, x, P)
+    meta[M_START] = 0
+    meta[M_COUNT] = 1
+    meta[M_GATED_RUN] = 0
+    c[C_POSE_RESET] += 1
+    return S_RESET
+
+
+@njit
+def obs_pose(a: EkfArrays, t_ns: int, x_m: float, y_m: float, psi_rad: float) -> int:
+    """Fuse a pose measured at `t_ns`, in order, late or out of order.
+
+    Args:
+        a: Filter arrays, updated in place.
+        t_ns: Measurement time stamp (ns), may be before the filter time.
+        x_m: Measured x (m, arena frame).
+        y_m: Measured y (m).
+        psi_rad: Measured heading (rad, any branch).
+
+    Returns:
+        ``S_FUSED``, or the ``S_*`` reason it was refused (state untouched then);
+        the matching counter is incremented. ``S_RESET`` when it was the
+        ``P_GATE_RESET``-th gated pose in a row and restarted the filter.
+
+    Notes:
+        A sample stamped before the filter time is placed in the history at its
+        stamp (a slot is opened if none has that stamp), its gate is checked on the
+        prior there, and the filter is re-run forward through the stored inputs and
+        measurements: the result equals fusing it on time (Moore & Stouch 2014,
+        ``smooth_lagged_data``). Older than ``P_MAX_DELAY`` or than the oldest slot:
+        refused as too old.
+    """
+    return _pose_event(
+        a.x,
+        a.P,
+        a.hist_t_ns,
+        a.hist_x,
+        a.hist_cov,
+        a.hist_u,
+        a.hist_z,
+        a.meta,
+        a.counters,
+        a.params,
+        t_ns,
+        x_m,
+        y_m,
+        psi_rad,
+    )
+
+
+@njit
+def _pose_event(
+    x: FloatArray,
+    P: FloatArray,
+    ht: IntArray,
+    hx: FloatArray,
+    hc: FloatArray,
+    hu: FloatArray,
+    hz: FloatArray,
+    meta: IntArray,
+    c: IntArray,
+    prm: FloatArray,
+    t_ns: int,
+    x_m: float,
+    y_m: float,
+    psi_rad: float,
+) -> int:
+    """Do :func:`obs_pose` on the arrays one by one."""
+    if not (math.isfinite(x_m) and math.isfinite(y_m) and math.isfinite(psi_rad)):
+        c[C_POSE_NONFINITE] += 1
+        return S_NONFINITE
+    if abs(x_m) > prm[P_MAX_POS] or abs(y_m) > prm[P_MAX_POS]:
+        c[C_POSE_ABSURD] += 1
+        return S_ABSURD
+    if meta[M_INIT] == 0:
+        c[C_NOT_INITIALIZED] += 1
+        return S_NOT_INITIALIZED
+    j = oldest_usable(ht, meta, prm, t_ns)
+    if j < 0:
+        c[C_POSE_TOO_OLD] += 1
+        return S_TOO_OLD
+    k_len = ht.shape[0]
+    count = meta[M_COUNT]
+    pj = slot_index(meta, k_len, j)
+    same_stamp = ht[pj] == t_ns
+    if same_stamp and not math.isnan(hz[pj, Z_X]):
+        c[C_POSE_DUPLICATE] += 1
+        return S_DUPLICATE
+    if not same_stamp and count == k_len and j == 0:
+        c[C_POSE_TOO_OLD] += 1
+        return S_TOO_OLD
+    t_head = head_time(ht, meta)
+    psi = wrap_angle(psi_rad)
+    rx = prm[P_R_X]
+    ry = prm[P_R_Y]
+    rpsi = prm[P_R_PSI]
+    gate = prm[P_GATE_POSE]
+    if same_stamp and j == count - 1:
+        # Fast path: a pose at the filter time updates the posterior in place.
+        if not _update_pose(x, P, x_m, y_m, psi, rx, ry, rpsi, gate):
+            return _gated(x, P, ht, hx, hc, hu, hz, meta, c, prm, x_m, y_m, psi)
+        p = pj
+        q = j
+    elif same_stamp:
+        # Late, at a stamp the history has (the usual latency case): re-run from
+        # that slot with the gate checked there; refused, the saved posterior
+        # comes back bit for bit (no later slot was touched yet).
+        x_save = x.copy()
+        P_save = P.copy()
+        load_prior(hx, hc, pj, x, P)
+        fuse_stored(x, P, hz, pj, prm)
+        if not _update_pose(x, P, x_m, y_m, psi, rx, ry, rpsi, gate):
+            x[:] = x_save
+            P[:, :] = P_save
+            return _gated(x, P, ht, hx, hc, hu, hz, meta, c, prm, x_m, y_m, psi)
+        hz[pj, Z_X] = x_m
+        hz[pj, Z_Y] = y_m
+        hz[pj, Z_PSI] = psi
+        propagate(x, P, ht, hx, hc, hu, hz, meta, prm, j)
+        return _fused(meta, c, t_ns < t_head)
+    else:
+        xs = np.empty(N_STATE)
+        Ps = np.empty((N_STATE, N_STATE))
+        prior_at(x, P, ht, hx, hc, hu, hz, meta, prm, j, t_ns, xs, Ps)
+        xg = xs.copy()
+        Pg = Ps.copy()
+        if not _update_pose(xg, Pg, x_m, y_m, psi, rx, ry, rpsi, gate):
+            return _gated(x, P, ht, hx, hc, hu, hz, meta, c, prm, x_m, y_m, psi)
+        j = make_room(meta, k_len, j)
+        q = j + 1
+        p = insert_slot(ht, hx, hc, hu, hz, meta, q, t_ns)
+        store_prior(hx, hc, p, xs, Ps)
+        if q == meta[M_COUNT] - 1:
+            x[:] = xg
+            P[:, :] = Pg
+    hz[p, Z_X] = x_m
+    hz[p, Z_Y] = y_m
+    hz[p, Z_PSI] = psi
+    if q < meta[M_COUNT] - 1:
+        rerun(x, P, ht, hx, hc, hu, hz, meta, prm, q)
+    return _fused(meta, c, t_ns < t_head)
+
+
+@njit
+def _fused(meta: IntArray, c: IntArray, late: bool) -> int:
+    """Count a fused pose and end a run of gated ones."""
+    meta[M_GATED_RUN] = 0
+    c[C_POSE_FUSED] += 1
+    if late:
+        c[C_POSE_LATE] += 1
+    return S_FUSED
+
+
+@njit
+def obs_imu(a: EkfArrays, t_ns: int, accel_x: float, accel_y: float, yaw_rate: float) -> int:
+    """Take an IMU sample at `t_ns`: advance the filter, hold its accelerations, fuse its rate.
+
+    Args:
+        a: Filter arrays, updated in place.
+        t_ns: Measurement time stamp (ns); usually after the filter time, which
+            it advances; earlier stamps are fused in the history like late poses.
+        accel_x: Specific force along body x (m/s^2), the input from t_ns on.
+        accel_y: Specific force along body y (m/s^2).
+        yaw_rate: Gyro z (rad/s).
+
+    Returns:
+        ``S_FUSED``; ``S_GATED`` when the accelerations were taken but the yaw rate
+        failed its gate; or the ``S_*`` reason the whole sample was refused (state
+        untouched). The matching counter is incremented.
+    """
+    return _imu_event(
+        a.x,
+        a.P,
+        a.hist_t_ns,
+        a.hist_x,
+        a.hist_cov,
+        a.hist_u,
+        a.hist_z,
+        a.meta,
+        a.counters,
+        a.params,
+        t_ns,
+        accel_x,
+        accel_y,
+        yaw_rate,
+    )
+
+
+@njit
+def _imu_event(
+    x: FloatArray,
+    P: FloatArray,
+    ht: IntArray,
+    hx: FloatArray,
+    hc: FloatArray,
+    hu: FloatArray,
+    hz: FloatArray,
+    meta: IntArray,
+    c: IntArray,
+    prm: FloatArray,
+    t_ns: int,
+    accel_x: float,
+    accel_y: float,
+    yaw_rate: float,
+) -> int:
+    """Do :func:`obs_imu` on the arrays one by one."""
+    if not (math.isfinite(accel_x) and math.isfinite(accel_y) and math.isfinite(yaw_rate)):
+        c[C_IMU_NONFINITE] += 1
+        return S_NONFINITE
+    max_acc = prm[P_MAX_ACC]
+    if abs(accel_x) > max_acc or abs(accel_y) > max_acc or abs(yaw_rate) > prm[P_MAX_RATE]:
+        c[C_IMU_ABSURD] += 1
+        return S_ABSURD
+    if meta[M_INIT] == 0:
+        c[C_NOT_INITIALIZED] += 1
+        return S_NOT_INITIALIZED
+    k_len = ht.shape[0]
+    t_head = head_time(ht, meta)
+    r_var = prm[P_R_GYRO]
+    gate = prm[P_GATE_GYRO]
+    if t_ns > t_head:
+        # Fast path: predict the posterior in place and open a slot at t_ns.
+        head = slot_index(meta, k_len, meta[M_COUNT] - 1)
+        ekf_predict(x, P, (t_ns - t_head) * NS_TO_S, hu[head, U_AX], hu[head, U_AY], prm)
+        make_room(meta, k_len, 0)
+        p = insert_slot(ht, hx, hc, hu, hz, meta, meta[M_COUNT], t_ns)
+        store_prior(hx, hc, p, x, P)
+        hu[p, U_AX] = accel_x
+        hu[p, U_AY] = accel_y
+        hu[p, U_OWN] = 1.0
+        gyro_ok = ekf_update_yaw_rate(x, P, yaw_rate, r_var, gate)
+        if gyro_ok:
+            hz[p, Z_R] = yaw_rate
+        c[C_IMU_FUSED] += 1
+        if not gyro_ok:
+            c[C_GYRO_GATED] += 1
+            return S_GATED
+        return S_FUSED
+    j = oldest_usable(ht, meta, prm, t_ns)
+    if j < 0:
+        c[C_IMU_TOO_OLD] += 1
+        return S_TOO_OLD
+    count = meta[M_COUNT]
+    pj = slot_index(meta, k_len, j)
+    same_stamp = ht[pj] == t_ns
+    if same_stamp and hu[pj, U_OWN] == 1.0:
+        c[C_IMU_DUPLICATE] += 1
+        return S_DUPLICATE
+    if not same_stamp and count == k_len and j == 0:
+        c[C_IMU_TOO_OLD] += 1
+        return S_TOO_OLD
+    xs = np.empty(N_STATE)
+    Ps = np.empty((N_STATE, N_STATE))
+    prior_at(x, P, ht, hx, hc, hu, hz, meta, prm, j, t_ns, xs, Ps)
+    xg = xs.copy()
+    Pg = Ps.copy()
+    gyro_ok = ekf_update_yaw_rate(xg, Pg, yaw_rate, r_var, gate)
+    if same_stamp:
+        p = pj
+        q = j
+    else:
+        j = make_room(meta, k_len, j)
+        q = j + 1
+        p = insert_slot(ht, hx, hc, hu, hz, meta, q, t_ns)
+        store_prior(hx, hc, p, xs, Ps)
+    hu[p, U_AX] = accel_x
+    hu[p, U_AY] = accel_y
+    hu[p, U_OWN] = 1.0
+    n_slots = meta[M_COUNT]
+    for logical in range(q + 1, n_slots):
+        pl = slot_index(meta, k_len, logical)
+        if hu[pl, U_OWN] == 1.0:
+            break
+        hu[pl, U_AX] = accel_x
+        hu[pl, U_AY] = accel_y
+    if gyro_ok:
+        hz[p, Z_R] = yaw_rate
+    if q == n_slots - 1:
+        # Same stamp as the head (t_ns > t_head took the fast path).
+        if gyro_ok:
+            x[:] = xg
+            P[:, :] = Pg
+    else:
+        rerun(x, P, ht, hx, hc, hu, hz, meta, prm, q)
+    c[C_IMU_FUSED] += 1
+    if t_ns < t_head:
+        c[C_IMU_LATE] += 1
+    if not gyro_ok:
+        c[C_GYRO_GATED] += 1
+        return S_GATED
+    return S_FUSED
