@@ -36,6 +36,7 @@ COMMANDS: dict[str, str] = {
     "sim-vessel": "sim_vessel",
     "synth": "synth",
     "info": "info",
+    "recover": "recover",
 }
 
 
