@@ -20,6 +20,7 @@ from typing import Any
 
 from hil.adapters.frames import ArenaTransform, quaternion_from_yaw, yaw_from_quaternion
 from hil.adapters.samples import Frame, ImuSample, PoseSample, SampleError, ThrusterCommand
+from hil.geometry import wrap_angle
 
 NS_PER_S = 1_000_000_000
 
@@ -160,16 +161,22 @@ def thruster_command_from_components(
 ) -> ThrusterCommand:
     """Rebuild a command from the lab's wrench components (inverse of the above).
 
-    A zero azimuth vector carries no angle; the previous angle (or the reference
-    angle) is kept then.
+    The vector fixes the thrust direction but not the sign of the propeller: like
+    a driver that turns each pod at most 90 degrees, the pod keeps the side of its
+    previous angle and reverses the propeller when the vector points behind it.
+    A zero vector carries no angle; the previous angle (or the reference angle)
+    is kept then.
     """
     fallback = previous or ThrusterCommand.zero(t_ns)
 
-    def polar(xy: tuple[float, float], angle_if_zero: float) -> tuple[float, float]:
+    def polar(xy: tuple[float, float], previous_angle: float) -> tuple[float, float]:
         magnitude = math.hypot(*xy)
         if magnitude < 1e-12:
-            return 0.0, angle_if_zero
-        return min(magnitude, 1.0), math.atan2(xy[1], xy[0])
+            return 0.0, previous_angle
+        angle = math.atan2(xy[1], xy[0])
+        if math.cos(angle - previous_angle) < 0.0:
+            return -min(magnitude, 1.0), wrap_angle(angle + math.pi)
+        return min(magnitude, 1.0), angle
 
     port_thrust, port_angle = polar(port, fallback.port_angle_rad)
     stbd_thrust, stbd_angle = polar(starboard, fallback.starboard_angle_rad)

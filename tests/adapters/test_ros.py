@@ -31,8 +31,7 @@ sensor_msgs = pytest.importorskip("sensor_msgs.msg")
 
 pytestmark = pytest.mark.ros
 
-TRANSFORM = ArenaTransform(origin_north_m=1.0, origin_east_m=-2.0, yaw_rad=0.3,
-                           body_offset_x_m=0.1)
+TRANSFORM = ArenaTransform(origin_north_m=1.0, origin_east_m=-2.0, yaw_rad=0.3, body_offset_x_m=0.1)
 
 
 def _domain_id() -> int:
@@ -71,14 +70,20 @@ def test_imu_message_round_trip() -> None:
 def test_thruster_components_round_trip() -> None:
     cmd = ThrusterCommand(5, 0.3, 0.8, -0.4, 1.2, -2.0)
     parts = thruster_wrench_components(cmd)
-    back = thruster_command_from_components(5, parts["tunnel"][0], parts["port"],
-                                            parts["starboard"])
+    back = thruster_command_from_components(
+        5, parts["tunnel"][0], parts["port"], parts["starboard"], previous=cmd
+    )
     assert back.tunnel == pytest.approx(0.3)
-    # A negative thrust comes back as a positive one pointing the other way.
     assert back.port == pytest.approx(0.8)
     assert back.port_angle_rad == pytest.approx(1.2)
-    assert back.starboard == pytest.approx(0.4)
-    assert math.cos(back.starboard_angle_rad - (-2.0 + math.pi)) == pytest.approx(1.0)
+    # The vector alone cannot tell a reversed propeller: the pod keeps its side.
+    assert back.starboard == pytest.approx(-0.4)
+    assert back.starboard_angle_rad == pytest.approx(-2.0)
+    # Without a previous angle, the reference angles decide the side.
+    fresh = thruster_command_from_components(5, 0.0, (0.0, -0.5), (0.0, 0.5))
+    assert fresh.port == pytest.approx(-0.5)
+    assert fresh.port_angle_rad == pytest.approx(math.pi / 2)
+    assert fresh.starboard == pytest.approx(-0.5)
 
 
 _NAMES = itertools.count()
@@ -91,17 +96,17 @@ class _Peer:
         self.context = rclpy.Context()
         rclpy.init(context=self.context, domain_id=domain_id)
         self.node = rclpy.create_node(f"peer_{os.getpid()}_{next(_NAMES)}", context=self.context)
-        self.pose_pub = self.node.create_publisher(geometry_msgs.PoseWithCovarianceStamped,
-                                                   "/voyager/measurement/pose", 10)
-        self.imu_pub = self.node.create_publisher(sensor_msgs.Imu,
-                                                  "/voyager/measurement/imu", 10)
+        self.pose_pub = self.node.create_publisher(
+            geometry_msgs.PoseWithCovarianceStamped, "/voyager/measurement/pose", 10
+        )
+        self.imu_pub = self.node.create_publisher(sensor_msgs.Imu, "/voyager/measurement/imu", 10)
         self.executor = rclpy.executors.SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self.wrenches: dict[str, list[Any]] = {"tunnel": [], "port": [], "starboard": []}
         for name, box in self.wrenches.items():
-            self.node.create_subscription(geometry_msgs.Wrench,
-                                          f"/voyager/thruster/{name}/command",
-                                          box.append, 10)
+            self.node.create_subscription(
+                geometry_msgs.Wrench, f"/voyager/thruster/{name}/command", box.append, 10
+            )
 
     def spin_for(self, seconds: float) -> None:
         end = time.monotonic() + seconds
@@ -118,8 +123,11 @@ class _Peer:
 def peer_and_world() -> Iterator[tuple[_Peer, RosWorld]]:
     domain = _domain_id()
     peer = _Peer(domain)
-    world = RosWorld(RosConfig(transform=TRANSFORM, domain_id=domain,
-                               node_name=f"stack_{os.getpid()}_{next(_NAMES)}"))
+    world = RosWorld(
+        RosConfig(
+            transform=TRANSFORM, domain_id=domain, node_name=f"stack_{os.getpid()}_{next(_NAMES)}"
+        )
+    )
     world.open()
     try:
         yield peer, world
@@ -137,8 +145,9 @@ def _wait_for(predicate: Any, peer: _Peer, timeout_s: float = 10.0) -> None:
     pytest.fail("timed out waiting for DDS traffic")
 
 
-def test_dds_pose_in_lab_frame_lands_at_arena_state(peer_and_world: tuple[_Peer, RosWorld],
-                                                   ) -> None:
+def test_dds_pose_in_lab_frame_lands_at_arena_state(
+    peer_and_world: tuple[_Peer, RosWorld],
+) -> None:
     peer, world = peer_and_world
     expected = PoseSample(7_000_000_000, 1.5, 0.5, -0.7, Frame.ARENA)
     msg = geometry_msgs.PoseWithCovarianceStamped()
