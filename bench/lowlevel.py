@@ -1,0 +1,363 @@
+"""Low-level loop benchmark: velocity-tracking error and speed (`python -m bench lowlevel`).
+
+Tracking: references change every 2 s as a random walk on the paper's input grid
+(surge -0.1..0.2 step 0.05 m/s, sway -0.1..0.1 step 0.05 m/s, yaw rate -0.2..0.2 step
+0.1 rad/s; each axis moves at most one grid step per command), simulated with sensor
+noise and the EKF in the loop. The error is nu - nu_ref against the command as issued.
+Printed beside the paper's tank figures, with the least error the thrust limits allow
+for the same steps (an ideal jerk- and acceleration-limited response, see
+`ideal_step_error`), and a per-axis bound on the error after settling (the part of
+each 2-s window after 1 s), which the symbolic layer's robustness margin can use.
+
+Speed: a 3-minute run (100 Hz physics, sensors + EKF + PID + allocation + vessel) in
+the compiled loop, against the same loop run by the Python interpreter
+(NUMBA_DISABLE_JIT=1 in a subprocess) over a short span, extrapolated. Both in CPU
+time of the process (one thread), so a busy machine inflates them less than wall time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import math
+import os
+import subprocess
+import sys
+import time
+from dataclasses import replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hil.controllers.allocation import extended_matrix, force_limits
+from hil.sim.closed_loop import (
+    AllocatorKind,
+    ClosedLoopResult,
+    LowLevelConfig,
+    simulate_closed_loop,
+)
+from hil.sim.environment import EnvironmentalLoad
+from hil.sim.thrusters import ThrusterParams
+from hil.sim.vessel import VesselParams, hydro_force
+
+F = NDArray[np.float64]
+
+GRID_LO = np.array([-0.1, -0.1, -0.2])
+GRID_HI = np.array([0.2, 0.1, 0.2])
+GRID_STEP = np.array([0.05, 0.05, 0.1])
+# Paper, Sec. V-C ("MSE" as printed): surge m/s, sway m/s, yaw deg/s.
+PAPER = np.array([0.00768, 0.00431, 0.62108])
+AXES = ("surge m/s", "sway m/s", "yaw deg/s")
+SETTLE_AFTER_S = 1.0
+
+
+def random_walk_refs(n: int, seed: int) -> F:
+    """Return (n, 3) references: a random walk on the grid, one step per axis at most."""
+    rng = np.random.default_rng(seed)
+    top = np.round((GRID_HI - GRID_LO) / GRID_STEP).astype(int)
+    idx = np.round(-GRID_LO / GRID_STEP).astype(int)  # start at zero velocity
+    out = np.empty((n, 3))
+    for k in range(n):
+        idx = np.clip(idx + rng.integers(-1, 2, size=3), 0, top)
+        out[k] = GRID_LO + idx * GRID_STEP
+    return out
+
+
+def axis_limits(vessel: VesselParams, thrusters: ThrusterParams, *, with_slew: bool) -> tuple[F, F]:
+    """Return per-axis bounds on |nu_dot_i| and |nu_ddot_i| from the thrust limits.
+
+    A_i = max over the thrust envelope of (M^-1 tau)_i (the envelope is the tunnel
+    segment plus two discs, so the maximum is a sum per thruster); J_i bounds its
+    rate: the tunnel's force changes at most K_t * rate, an azimuth's force vector at
+    most K (rate + |u|max * slew) with slew, or K rate without (pods not yet
+    turning under thrust). Drag and Coriolis are left out (see `hydro_margins`).
+    """
+    tp = thrusters.as_array()
+    be = extended_matrix(tp)
+    fmax = force_limits(tp)
+    k = np.asarray(thrusters.gains_n)
+    rate = thrusters.command_rate_per_s
+    slew = thrusters.azimuth_rate_radps if with_slew else 0.0
+    m_inv = np.linalg.inv(vessel.mass_matrix())
+    a_max = np.empty(3)
+    j_max = np.empty(3)
+    for i in range(3):
+        w = m_inv[i] @ be
+        port = math.hypot(w[1], w[2])
+        stbd = math.hypot(w[3], w[4])
+        a_max[i] = abs(w[0]) * fmax[0] + port * fmax[1] + stbd * fmax[2]
+        j_max[i] = abs(w[0]) * k[0] * rate + (port * k[1] + stbd * k[2]) * (rate + slew)
+    return a_max, j_max
+
+
+def hydro_margins(vessel: VesselParams) -> tuple[F, F]:
+    """Bound what drag and Coriolis can add to |nu_dot_i|, and the rate they vary.
+
+    Over the operating range widened past the grid (|u| up to 0.15 / 0.25, |v| 0.15,
+    |r| 0.3), returns h_i = max |(M^-1 (C(nu) nu + D(nu) nu))_i| (3,) and the bound
+    G (3, 3) of |d/dnu| of the same (central differences), so that the hydrodynamic
+    part of nu_ddot_i is at most (G @ a_max)_i. Counting these as helping the
+    controller (whatever their sign) keeps the bound below any real response.
+    """
+    m_inv = np.linalg.inv(vessel.mass_matrix())
+    coef = vessel.kernel_arrays()[1]
+    h = np.zeros(3)
+    g = np.zeros((3, 3))
+    grid = itertools.product(
+        np.linspace(-0.15, 0.25, 17), np.linspace(-0.15, 0.15, 13), np.linspace(-0.3, 0.3, 25)
+    )
+    for u, v, r in grid:
+        nu = np.array([u, v, r])
+        h = np.maximum(h, np.abs(m_inv @ hydro_force(coef, nu)))
+        for j in range(3):
+            e = np.zeros(3)
+            e[j] = 1e-6
+            col = m_inv @ (hydro_force(coef, nu + e) - hydro_force(coef, nu - e)) / 2e-6
+            g[:, j] = np.maximum(g[:, j], np.abs(col))
+    return h, g
+
+
+def ideal_step_error(delta: float, a_max: float, j_max: float) -> float:
+    """Return the integral of e^2 (units^2 s) of the ideal response to a step `delta`.
+
+    The response starts from steady state (zero acceleration: the previous reference
+    held) and follows the time-optimal rest-to-rest profile with
+    |acceleration| <= a_max and |jerk| <= j_max (bang-bang jerk), the fastest any
+    controller can close the step; integrated exactly piecewise (fine grid).
+    """
+    d = abs(delta)
+    if d == 0.0:
+        return 0.0
+    if d <= a_max * a_max / j_max:
+        t_j, t_h = math.sqrt(d / j_max), 0.0
+    else:
+        t_j, t_h = a_max / j_max, (d - a_max * a_max / j_max) / a_max
+    dt = 1e-5
+    t = np.arange(0.0, 2 * t_j + t_h, dt)
+    a_peak = j_max * t_j
+    acc = np.where(
+        t < t_j, j_max * t, np.where(t < t_j + t_h, a_peak, a_peak - j_max * (t - t_j - t_h))
+    )
+    v = np.cumsum(np.maximum(acc, 0.0)) * dt
+    return float(np.sum((d - v) ** 2) * dt)
+
+
+def ideal_rms(refs: F, period_s: float, a_max: F, j_max: F) -> F:
+    """Return the per-axis RMS error of the ideal response to a reference sequence."""
+    steps = np.diff(np.vstack([np.zeros((1, 3)), refs]), axis=0)
+    total = np.zeros(3)
+    cache: dict[tuple[int, float], float] = {}
+    for row in steps:
+        for i in range(3):
+            key = (i, round(abs(row[i]), 9))
+            if key not in cache:
+                cache[key] = ideal_step_error(abs(row[i]), a_max[i], j_max[i])
+            total[i] += cache[key]
+    out: F = np.sqrt(total / (refs.shape[0] * period_s))
+    return out
+
+
+def tracking_errors(res: ClosedLoopResult) -> F:
+    """Return the error nu - nu_ref, shape (N, 3)."""
+    out: F = res.nu - res.nu_ref
+    return out
+
+
+def settled_mask(res: ClosedLoopResult, period_s: float) -> NDArray[np.bool_]:
+    """Return which rows lie at least SETTLE_AFTER_S into their 2-s window."""
+    phase = np.mod(res.t_s + 1e-9, period_s)
+    out: NDArray[np.bool_] = phase >= SETTLE_AFTER_S
+    return out
+
+
+def to_display(x: F) -> F:
+    """Convert a per-axis (m/s, m/s, rad/s) row to (m/s, m/s, deg/s)."""
+    out = np.array(x, dtype=np.float64)
+    out[..., 2] = np.degrees(out[..., 2])
+    return out
+
+
+def fmt_row(label: str, values: F, digits: int = 5) -> str:
+    cells = "".join(f"{v:>14.{digits}f}" for v in values)
+    return f"  {label:<44}{cells}"
+
+
+def run_variant(cfg: LowLevelConfig, refs: list[F]) -> tuple[F, F, list[ClosedLoopResult]]:
+    """Run every seed; return (rms (3,), mse (3,), the results), errors pooled."""
+    runs = [simulate_closed_loop(r, replace(cfg, seed=seed)) for seed, r in enumerate(refs)]
+    e = np.vstack([tracking_errors(res) for res in runs])
+    mse: F = np.mean(e**2, axis=0)
+    return np.sqrt(mse), mse, runs
+
+
+def interpreted_seconds(span_s: float) -> float:
+    """Time `span_s` simulated seconds of the same loop under NUMBA_DISABLE_JIT=1."""
+    code = (
+        "import time, numpy as np\n"
+        "from bench.lowlevel import random_walk_refs\n"
+        "from hil.sim.closed_loop import simulate_closed_loop, LowLevelConfig\n"
+        f"refs = random_walk_refs({max(1, round(span_s / 2.0))}, 0)\n"
+        "t = time.process_time(); simulate_closed_loop(refs, LowLevelConfig())\n"
+        "print(time.process_time() - t)\n"
+    )
+    env = dict(os.environ, NUMBA_DISABLE_JIT="1")
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
+    )
+    return float(out.stdout.strip().splitlines()[-1])
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Print tracking error, bounds and loop speed; return 0."""
+    parser = argparse.ArgumentParser(prog="python -m bench lowlevel", description=__doc__)
+    parser.add_argument("--seconds", type=float, default=180.0, help="run length (s)")
+    parser.add_argument("--seeds", type=int, default=3, help="random-walk seeds")
+    parser.add_argument("--repeats", type=int, default=5, help="timing repeats (best of)")
+    parser.add_argument("--baseline-seconds", type=float, default=4.0, help="interpreted span (s)")
+    parser.add_argument("--json", action="store_true", help="also print a JSON summary")
+    args = parser.parse_args(argv)
+
+    cfg = LowLevelConfig()
+    period = cfg.command_period_s
+    n_ref = max(1, round(args.seconds / period))
+    refs = [random_walk_refs(n_ref, 1000 + s) for s in range(args.seeds)]
+
+    t0 = time.perf_counter()
+    simulate_closed_loop(refs[0][:2], cfg)  # compile (or load the cache)
+    compile_s = time.perf_counter() - t0
+
+    print(
+        f"low-level loop: {args.seeds} seeds x {n_ref * period:.0f} s, references every "
+        f"{period:.0f} s (random walk on the paper's grid), sensors + EKF on, "
+        f"PID/allocation {1.0 / cfg.control_period_s:.0f} Hz, physics {1.0 / cfg.dt_s:.0f} Hz"
+    )
+    print(f"  first call (compile or cache load): {compile_s:.2f} s")
+
+    # ---- tracking ----
+    variants = {
+        "EKF + min-magnitude/azimuth alloc (default)": cfg,
+        "true velocity (no sensors/EKF)": replace(cfg, observer=None),
+        "EKF + plain pseudo-inverse alloc": replace(cfg, allocator=AllocatorKind.PSEUDO_INVERSE),
+        "EKF + PID/allocation every physics step": replace(cfg, control_period_s=cfg.dt_s),
+        "EKF + slowly varying load (GM 0.1 N, 30 s)": replace(
+            cfg,
+            environment=EnvironmentalLoad(
+                gm_std_n=(0.1, 0.1, 0.03), gm_time_constant_s=30.0, seed=11
+            ),
+        ),
+    }
+    results = {name: run_variant(v, refs) for name, v in variants.items()}
+    rms, mse, default_runs = results["EKF + min-magnitude/azimuth alloc (default)"]
+
+    a_thrust, j_thrust = axis_limits(cfg.vessel, cfg.thrusters, with_slew=True)
+    h_max, h_jac = hydro_margins(cfg.vessel)
+    a_strict = a_thrust + h_max
+    j_strict = j_thrust + h_jac @ a_strict
+    a_idle, j_idle = axis_limits(cfg.vessel, cfg.thrusters, with_slew=False)
+    bound_strict = np.sqrt(
+        np.mean([ideal_rms(r, period, a_strict, j_strict) ** 2 for r in refs], axis=0)
+    )
+    bound_idle = np.sqrt(np.mean([ideal_rms(r, period, a_idle, j_idle) ** 2 for r in refs], axis=0))
+
+    header = "".join(f"{a:>14}" for a in AXES)
+    print("\nvelocity tracking error nu - nu_ref (against the command as issued)")
+    print(f"  {'':<44}{header}")
+    print(fmt_row("paper, towing tank (printed as 'MSE')", PAPER))
+    for name, (r_rms, _, _) in results.items():
+        print(fmt_row(f"RMS  {name}", to_display(r_rms)))
+    print(
+        fmt_row(
+            "MSE  default (units^2; yaw in (deg/s)^2)",
+            np.array([mse[0], mse[1], np.degrees(np.degrees(mse[2]))]),
+            7,
+        )
+    )
+    print(fmt_row("least RMS the limits allow (strict bound)", to_display(bound_strict)))
+    print(fmt_row("ideal RMS from idle thrusters (yardstick)", to_display(bound_idle)))
+    ratio = to_display(rms) / PAPER
+    print(fmt_row("default RMS / paper", ratio, 2))
+    print(
+        fmt_row(
+            "paper / strict bound (< 1: paper unreachable)", PAPER / to_display(bound_strict), 2
+        )
+    )
+    print(fmt_row("default RMS / strict bound", rms / bound_strict, 2))
+    print("  strict bound: per axis, the time-optimal response to each step with |nu_dot| and its")
+    print("  rate bounded by the thrust envelope, the command rate (2 /s) and the pod slew rate,")
+    print("  plus all that drag and Coriolis could add over the operating range, as if they always")
+    print("  helped. Idle: thrust only, no slew (thrusters start from zero), no hydrodynamics;")
+    print("  a yardstick for a controller starting from idle thrusters, not a bound.")
+    print(
+        f"  limits used: accel {np.round(to_display(a_strict), 3)} per s, jerk strict "
+        f"{np.round(to_display(j_strict), 3)}, idle {np.round(to_display(j_idle), 3)} per s^2"
+    )
+
+    # ---- settled bound (for the symbolic layer's margin) ----
+    settled = np.vstack(
+        [np.abs(tracking_errors(res))[settled_mask(res, period)] for res in default_runs]
+    )
+    p99 = np.percentile(settled, 99.0, axis=0)
+    worst = settled.max(axis=0)
+    print(
+        f"\nerror after settling (|nu - nu_ref| over the part of each window after "
+        f"{SETTLE_AFTER_S:.0f} s, default config)"
+    )
+    print(f"  {'':<44}{header}")
+    print(fmt_row("99th percentile", to_display(p99)))
+    print(fmt_row("max", to_display(worst)))
+
+    # ---- speed ----
+    long_refs = random_walk_refs(round(180.0 / period), 7)
+    best = math.inf
+    best_wall = math.inf
+    for _ in range(args.repeats):
+        t0 = time.perf_counter()
+        c0 = time.process_time()
+        simulate_closed_loop(long_refs, cfg)
+        best = min(best, time.process_time() - c0)
+        best_wall = min(best_wall, time.perf_counter() - t0)
+    sim_s = long_refs.shape[0] * period
+    base_span = args.baseline_seconds
+    base_s = interpreted_seconds(base_span) * (sim_s / (max(1, round(base_span / 2.0)) * 2.0))
+    print(
+        f"\nspeed: {sim_s:.0f} s simulated "
+        "(100 Hz physics, sensors + EKF + PID + allocation + vessel)"
+    )
+    print(
+        f"  compiled loop, CPU time (best of {args.repeats}): {best:8.4f} s   "
+        f"{sim_s / best:9.0f}x real time   target <= 0.18 s: "
+        f"{'met' if best <= 0.18 else 'MISSED'}"
+    )
+    print(
+        f"  compiled loop, wall time (best of {args.repeats}): {best_wall:8.4f} s   "
+        f"{sim_s / best_wall:9.0f}x real time (includes waiting for a shared core)"
+    )
+    print(
+        f"  interpreted (same code, NUMBA_DISABLE_JIT, {base_span:.0f} s extrapolated): "
+        f"{base_s:8.2f} s   {sim_s / base_s:9.1f}x real time"
+    )
+    print(f"  speed-up over the interpreted loop: {base_s / best:.0f}x")
+
+    if args.json:
+        print(
+            json.dumps(
+                {
+                    "rms": to_display(rms).tolist(),
+                    "mse_si": mse.tolist(),
+                    "paper": PAPER.tolist(),
+                    "bound_strict_rms": to_display(bound_strict).tolist(),
+                    "bound_idle_rms": to_display(bound_idle).tolist(),
+                    "settled_p99": to_display(p99).tolist(),
+                    "settled_max": to_display(worst).tolist(),
+                    "loop_s": best,
+                    "realtime_factor": sim_s / best,
+                    "interpreted_s": base_s,
+                }
+            )
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,52 @@
+"""Symbolic (finite-abstraction) reach-avoid controller: grid -> abstraction -> synthesis.
+
+Imports go one way, as in SCOTS v0.2: grid and problem, abstraction (offset tables,
+cached on disk), sweep (compiled fixed point), synthesis (one call per obstacle layout),
+controller (value function and safe-input lookup), selection (the paper's cost J);
+reference holds the dense numpy solver used as baseline and second opinion.
+
+Typical use::
+
+    problem = SymbolicProblem.from_scenario(load_scenario("paper"))
+    controller = synthesize(problem)                  # tables built once, then cached
+    sigma = select(controller.safe_inputs(state), previous)
+    # new obstacle layout, same tables, e.g. from a background thread:
+    synthesizer = Synthesizer(controller.tables, threads=1)
+    controller = synthesizer.solve_sets(moved.obstacles, moved.target)
+"""
+
+from hil.controllers.symbolic.abstraction import Tables, build_tables, default_cache_dir, tables_for
+from hil.controllers.symbolic.controller import Controller, SynthesisStats
+from hil.controllers.symbolic.errors import (
+    ControllerFileError,
+    EmptyInputSetError,
+    GridError,
+    NoWinningSetError,
+    SymbolicError,
+)
+from hil.controllers.symbolic.grid import Grid, obstacle_mask, target_mask
+from hil.controllers.symbolic.problem import SymbolicProblem
+from hil.controllers.symbolic.selection import cost, select
+from hil.controllers.symbolic.synthesis import Synthesizer, synthesize
+
+__all__ = [
+    "Controller",
+    "ControllerFileError",
+    "EmptyInputSetError",
+    "Grid",
+    "GridError",
+    "NoWinningSetError",
+    "SymbolicError",
+    "SymbolicProblem",
+    "SynthesisStats",
+    "Synthesizer",
+    "Tables",
+    "build_tables",
+    "cost",
+    "default_cache_dir",
+    "obstacle_mask",
+    "select",
+    "synthesize",
+    "tables_for",
+    "target_mask",
+]

@@ -1,0 +1,80 @@
+"""`hil synth`: the report, the JSON line, the saved controller and the error exits."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from hil.cli import main
+from hil.controllers.symbolic import Controller
+
+COARSE = Path(__file__).parents[2] / "hil" / "scenarios" / "coarse.toml"
+
+
+def test_synth_prints_a_report_and_json(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    saved = tmp_path / "ctrl.npz"
+    status = main(
+        [
+            "synth",
+            "coarse",
+            "--json",
+            "--save",
+            str(saved),
+            "--cache-dir",
+            str(tmp_path),
+            "--repeat",
+            "2",
+        ]
+    )
+    out = capsys.readouterr().out.strip().splitlines()
+    assert status == 0
+    summary = json.loads(out[-1])
+    for key in (
+        "synthesis_seconds",
+        "abstraction_seconds",
+        "iterations",
+        "winning_fraction",
+        "peak_memory_mb",
+        "grid_cells",
+    ):
+        assert key in summary
+    assert summary["grid"] == [40, 30, 24]
+    assert summary["grid_cells"] == 40 * 30 * 24
+    assert summary["winning_fraction"] == 1.0
+    assert summary["iterations"] > 10
+    assert 0.0 < summary["peak_memory_mb"] < 100.0
+    assert any(line.startswith("winning") for line in out[:-1])
+    assert Controller.load(saved).stats.winning_cells == summary["winning_cells"]
+    # Second run: tables come from the cache.
+    main(["synth", "coarse", "--json", "--cache-dir", str(tmp_path), "--repeat", "1"])
+    assert (
+        json.loads(capsys.readouterr().out.strip().splitlines()[-1])["abstraction_cached"] is True
+    )
+
+
+def test_synth_reports_a_layout_without_winning_cells(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    text = COARSE.read_text(encoding="utf-8")
+    # A wall right of the target, inflated over all of it.
+    text += (
+        '\n[[obstacles]]\nname = "W"\nx_m = [-1.95, -1.9]\ny_m = [0.75, 2.25]\ninflation_m = 1.6\n'
+    )
+    path = tmp_path / "blocked.toml"
+    path.write_text(text, encoding="utf-8")
+    status = main(["synth", str(path), "--json", "--cache-dir", str(tmp_path), "--repeat", "1"])
+    captured = capsys.readouterr()
+    assert status == 1
+    assert "no winning cell" in captured.err
+    assert json.loads(captured.out.strip().splitlines()[-1])["winning_cells"] == 0
+
+
+def test_synth_refuses_a_bad_scenario(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "bad.toml"
+    path.write_text(
+        COARSE.read_text(encoding="utf-8").replace("tau_s = 2.0", "tau_s = -2.0"), encoding="utf-8"
+    )
+    assert main(["synth", str(path)]) == 2
+    assert "timing.'tau_s'" in capsys.readouterr().err
