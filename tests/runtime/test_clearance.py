@@ -10,8 +10,9 @@ from hil.scenario import load_scenario
 def test_matches_the_scalar_geometry_on_random_poses() -> None:
     scenario = load_scenario("coarse")
     rng = np.random.default_rng(7)
-    eta = np.column_stack([rng.uniform(-3.5, 4.5, 300), rng.uniform(-3, 3, 300),
-                           rng.uniform(-math.pi, math.pi, 300)])
+    eta = np.column_stack(
+        [rng.uniform(-3.5, 4.5, 300), rng.uniform(-3, 3, 300), rng.uniform(-math.pi, math.pi, 300)]
+    )
     fast = hull_clearance_series(scenario, eta)
     slow = np.array([scenario.hull_clearance_m(*row) for row in eta])
     np.testing.assert_allclose(fast, slow, atol=1e-9)

@@ -11,8 +11,9 @@ def _layout(t_ns: int) -> ObstacleLayout:
 
 
 def test_inline_results_are_immediate_and_versioned() -> None:
-    worker: Resynthesizer[int] = Resynthesizer(lambda layout: layout.t_ns * 2,
-                                               ResynthesisMode.INLINE)
+    worker: Resynthesizer[int] = Resynthesizer(
+        lambda layout: layout.t_ns * 2, ResynthesisMode.INLINE
+    )
     assert worker.poll() is None
     worker.submit(_layout(3))
     worker.submit(_layout(5))

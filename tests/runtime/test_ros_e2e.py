@@ -50,7 +50,7 @@ def test_stack_docks_the_simulated_vessel_over_dds(tmp_path: Path) -> None:
     config = tmp_path / "vessel.toml"
     config.write_text(f"""
 scenario = "coarse"
-runs_dir = "{tmp_path / 'runs'}"
+runs_dir = "{tmp_path / "runs"}"
 [ros]
 use_sim_time = true
 domain_id = {domain}
@@ -61,14 +61,32 @@ resynthesis_period_s = 20.0
     out = tmp_path / "run"
     # Start below O2, heading west: a short slalom into the target.
     vessel = subprocess.Popen(
-        [*HIL, "sim-vessel", "coarse", "--clock", "--speed", "2", "--start=-0.3,-1.6,180",
-         "--domain-id", str(domain), "--duration", "400"],
-        env=_env(domain), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        [
+            *HIL,
+            "sim-vessel",
+            "coarse",
+            "--clock",
+            "--speed",
+            "2",
+            "--start=-0.3,-1.6,180",
+            "--domain-id",
+            str(domain),
+            "--duration",
+            "400",
+        ],
+        env=_env(domain),
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     stack = None
     try:
-        stack = subprocess.Popen([*HIL, "vessel", "--config", str(config), "--out", str(out),
-                                  "--json"], env=_env(domain), stdout=subprocess.PIPE,
-                                 stderr=subprocess.PIPE, text=True)
+        stack = subprocess.Popen(
+            [*HIL, "vessel", "--config", str(config), "--out", str(out), "--json"],
+            env=_env(domain),
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
         stdout, stderr = stack.communicate(timeout=240)
     finally:
         if stack is not None and stack.poll() is None:
@@ -98,12 +116,19 @@ scenario = "coarse"
 domain_id = {domain}
 """)
     out = tmp_path / "run"
-    vessel = subprocess.Popen([*HIL, "sim-vessel", "coarse", "--domain-id", str(domain)],
-                              env=_env(domain), stdout=subprocess.DEVNULL,
-                              stderr=subprocess.DEVNULL)
-    stack = subprocess.Popen([*HIL, "vessel", "--config", str(config), "--out", str(out)],
-                             env=_env(domain), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                             text=True)
+    vessel = subprocess.Popen(
+        [*HIL, "sim-vessel", "coarse", "--domain-id", str(domain)],
+        env=_env(domain),
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    stack = subprocess.Popen(
+        [*HIL, "vessel", "--config", str(config), "--out", str(out)],
+        env=_env(domain),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         # Wait until the stack is recording the vessel's poses, then ask it to stop.
         deadline = time.monotonic() + 60

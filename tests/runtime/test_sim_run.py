@@ -31,12 +31,17 @@ def cache_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def _spec(cache_dir: Path, **kw: object) -> SimRunSpec:
-    return SimRunSpec(scenario="coarse", loop=kw.pop("loop", LOOP),  # type: ignore[arg-type]
-                      cache_dir=cache_dir, **kw)  # type: ignore[arg-type]
+    return SimRunSpec(
+        scenario="coarse",
+        loop=kw.pop("loop", LOOP),  # type: ignore[arg-type]
+        cache_dir=cache_dir,
+        **kw,
+    )  # type: ignore[arg-type]
 
 
-def test_docks_without_contact_and_the_bag_holds_every_decision(cache_dir: Path,
-                                                               tmp_path: Path) -> None:
+def test_docks_without_contact_and_the_bag_holds_every_decision(
+    cache_dir: Path, tmp_path: Path
+) -> None:
     out = tmp_path / "run"
     summary = run_in_sim(_spec(cache_dir, seed=1, out_dir=out))
     assert summary.docked, summary.end_reason
@@ -61,8 +66,10 @@ def test_same_seed_gives_identical_decisions(cache_dir: Path) -> None:
     logs = [MemoryLog(), MemoryLog()]
     for log in logs:
         run_in_sim(_spec(cache_dir, seed=3), log=log)
-    first, second = ([(d.t_ns, d.cell, d.chosen_index, d.safe_input_indices) for d in log.decisions]
-                     for log in logs)
+    first, second = (
+        [(d.t_ns, d.cell, d.chosen_index, d.safe_input_indices) for d in log.decisions]
+        for log in logs
+    )
     assert first == second
     assert len(first) > 10
 
@@ -85,8 +92,9 @@ def test_pose_outage_zeroes_thrust_then_resumes(cache_dir: Path) -> None:
 
 def test_thruster_link_failure_is_logged_and_the_run_goes_on(cache_dir: Path) -> None:
     log = MemoryLog()
-    summary = run_in_sim(_spec(cache_dir, seed=4,
-                               thruster_outages=(ThrusterOutage(8.0, 8.5),)), log=log)
+    summary = run_in_sim(
+        _spec(cache_dir, seed=4, thruster_outages=(ThrusterOutage(8.0, 8.5),)), log=log
+    )
     assert log.event_codes().count(EventCode.THRUSTER_FAILURE.value) == 10  # 0.5 s at 20 Hz
     assert summary.docked
     assert summary.hull_contacts == 0
@@ -107,9 +115,15 @@ def test_layout_without_solution_stops_the_vessel(cache_dir: Path) -> None:
     log = MemoryLog()
     # O2 slides down onto the target's approach until no start is winning.
     motion = ObstacleMotion(index=1, velocity_mps=(-0.5, -0.3), start_s=2.0, stop_s=6.0)
-    summary = run_in_sim(_spec(cache_dir, seed=6, motions=(motion,),
-                               loop=LoopConfig(resynthesis_period_s=None, max_duration_s=30.0)),
-                         log=log)
+    summary = run_in_sim(
+        _spec(
+            cache_dir,
+            seed=6,
+            motions=(motion,),
+            loop=LoopConfig(resynthesis_period_s=None, max_duration_s=30.0),
+        ),
+        log=log,
+    )
     assert EventCode.SYNTHESIS_FAILED.value in log.event_codes()
     assert not summary.docked
     failed_t = next(t for t, _, c, _ in log.events if c == EventCode.SYNTHESIS_FAILED.value)
@@ -122,9 +136,15 @@ def test_layout_without_solution_stops_the_vessel(cache_dir: Path) -> None:
 def test_start_outside_the_winning_set_stops_and_says_so(cache_dir: Path) -> None:
     log = MemoryLog()
     # Inside O1's inflation band: not winning, so the vessel must not move off on its own.
-    summary = run_in_sim(_spec(cache_dir, seed=7, start=(2.0, 0.3, 0.0),
-                               loop=LoopConfig(resynthesis_period_s=None, max_duration_s=10.0)),
-                         log=log)
+    summary = run_in_sim(
+        _spec(
+            cache_dir,
+            seed=7,
+            start=(2.0, 0.3, 0.0),
+            loop=LoopConfig(resynthesis_period_s=None, max_duration_s=10.0),
+        ),
+        log=log,
+    )
     assert not summary.docked
     assert summary.not_winning_decisions >= 1
     assert EventCode.NOT_WINNING.value in log.event_codes()
