@@ -42,7 +42,8 @@ def test_synth_prints_a_report_and_json(tmp_path: Path, capsys: pytest.CaptureFi
         assert key in summary
     assert summary["grid"] == [40, 30, 24]
     assert summary["grid_cells"] == 40 * 30 * 24
-    assert summary["winning_fraction"] == 1.0
+    # The tracking-error margin costs the cells that touch walls and obstacles.
+    assert 0.7 < summary["winning_fraction"] < 1.0  # 0.2-m cells: the ring is a large share
     assert summary["iterations"] > 10
     assert 0.0 < summary["peak_memory_mb"] < 100.0
     assert any(line.startswith("winning") for line in out[:-1])
