@@ -1,3 +1,46 @@
-"""Adapters: interfaces (typing.Protocol) and backends (sim, log, ros) for the world."""
+"""Adapters: interfaces (typing.Protocol) and backends (sim, log, ros) for the world.
 
-__all__: list[str] = []
+Backends are modules of their own (`hil.adapters.sim`, `hil.adapters.log`,
+`hil.adapters.ros`) so that importing the interfaces pulls in neither numba nor
+rclpy.
+"""
+
+from hil.adapters.frames import ArenaTransform, quaternion_from_yaw, yaw_from_quaternion
+from hil.adapters.interfaces import (
+    Clock,
+    ImuSource,
+    ObstacleSource,
+    PoseSource,
+    ThrusterSink,
+    ThrusterSinkError,
+)
+from hil.adapters.samples import (
+    Frame,
+    ImuSample,
+    ObstacleLayout,
+    PoseSample,
+    Rectangle,
+    SampleError,
+    ThrusterCommand,
+    VelocityReference,
+)
+
+__all__ = [
+    "ArenaTransform",
+    "Clock",
+    "Frame",
+    "ImuSample",
+    "ImuSource",
+    "ObstacleLayout",
+    "ObstacleSource",
+    "PoseSample",
+    "PoseSource",
+    "Rectangle",
+    "SampleError",
+    "ThrusterCommand",
+    "ThrusterSink",
+    "ThrusterSinkError",
+    "VelocityReference",
+    "quaternion_from_yaw",
+    "yaw_from_quaternion",
+]
