@@ -36,6 +36,8 @@ COMMANDS: dict[str, str] = {
     "sim-vessel": "sim_vessel",
     "synth": "synth",
     "info": "info",
+    "inspect": "inspect",
+    "plot": "plot",
     "recover": "recover",
 }
 

@@ -39,6 +39,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-record", action="store_true", help="keep the run in memory only")
     parser.add_argument("--max-duration", type=float, default=600.0, metavar="S",
                         help="give up after this many simulated seconds")
+    parser.add_argument("--rerun", nargs="?", const="spawn", default=None, metavar="RRD",
+                        help="stream the run live to Rerun: a spawned viewer, or into RRD")
     parser.add_argument("--json", action="store_true",
                         help="end with the summary as one JSON object on the last line")
 
@@ -64,7 +66,9 @@ def run(args: argparse.Namespace) -> int:
         stamp = time.strftime("%Y%m%d-%H%M%S")
         out = args.out or Path("runs") / f"{name}-seed{args.seed}-{stamp}"
     spec = SimRunSpec(scenario=args.scenario, seed=args.seed, start=args.start, out_dir=out,
-                      loop=LoopConfig(max_duration_s=args.max_duration))
+                      loop=LoopConfig(max_duration_s=args.max_duration),
+                      rerun_spawn=args.rerun == "spawn",
+                      rerun_save=None if args.rerun in (None, "spawn") else Path(args.rerun))
     try:
         with console.status(f"docking in the {name} scenario (seed {args.seed})..."):
             summary = run_in_sim(spec)

@@ -172,3 +172,18 @@ class LayoutSolver:
             raise NoWinningSetError(
                 f"no winning cell outside the target for the layout at t={layout.t_ns} ns")
         return SymbolicAdapter(controller)
+
+
+def warm_up_kernels(loop_hz: float = 20.0) -> None:
+    """Compile (or load from numba's cache) every low-level kernel before a loop starts.
+
+    On the vessel a first call that compiles would stall the loop for seconds;
+    throwaway objects take those calls so no state of the real ones is touched.
+    """
+    low_level = PidAllocator(VelocityPid(dt_s=1.0 / loop_hz), MinimumMagnitudeAzimuthAllocator())
+    low_level.step(np.zeros(3), np.zeros(3), 0)
+    observer = EkfObserver()
+    observer.update_pose(PoseSample(0, 0.0, 0.0, 0.0))
+    observer.update_imu(ImuSample(10_000_000, 0.0, 0.0, 0.0))
+    observer.update_pose(PoseSample(5_000_000, 0.0, 0.0, 0.0))  # a late one: the re-run path
+    observer.estimate()

@@ -109,12 +109,15 @@ class World:
 class RunStats:
     """Counters and time series the loop keeps for the run's summary.
 
-    Series are time-major lists, one row per tick: `t_ns`, `eta_hat` (3,),
-    `nu_hat` (3,), `nu_ref` (3,).
+    Series are time-major lists, one row per tick under control: `t_ns`,
+    `eta_hat` (3,), `nu_hat` (3,), `nu_ref` (3,); `tick_wall_ns` holds the clock
+    time at which every tick started (for the period jitter).
     """
 
     start_ns: int = 0
     end_ns: int = 0
+    overruns: int = 0
+    tick_wall_ns: list[int] = field(default_factory=list)
     decisions: int = 0
     resyntheses: int = 0
     synthesis_seconds: list[float] = field(default_factory=list)
@@ -209,11 +212,20 @@ class Runtime:
     def run(self) -> RunStats:
         """Tick until docked or stopped; thrusters are zeroed on the way out."""
         clock = self.world.clock
+        period = self.config.period_ns
         next_tick = clock.now_ns()
+        # The run (and its time limit) starts now, after any warm-up since construction.
+        self._start_ns = self.stats.start_ns = next_tick
         try:
             while self.mode not in (Mode.DOCKED, Mode.STOPPED):
-                self.tick(next_tick)
-                next_tick += self.config.period_ns
+                now = clock.now_ns()
+                self.stats.tick_wall_ns.append(now)
+                if now - next_tick > period:
+                    # More than a period late: skip the missed ticks instead of bunching them.
+                    self.stats.overruns += 1
+                    next_tick = now
+                self.tick(now)
+                next_tick += period
                 clock.sleep_until(next_tick)
         finally:
             self.stats.end_ns = clock.now_ns()

@@ -58,6 +58,8 @@ class SimRunSpec:
         thruster_outages: Injected thruster-link failures.
         motions: Scheduled obstacle motions.
         cache_dir: Abstraction-table cache (None: the default cache).
+        rerun_spawn: Stream the run live to a spawned Rerun viewer.
+        rerun_save: Stream the run live into this .rrd file.
     """
 
     scenario: str = "paper"
@@ -69,6 +71,8 @@ class SimRunSpec:
     thruster_outages: tuple[ThrusterOutage, ...] = ()
     motions: tuple[ObstacleMotion, ...] = ()
     cache_dir: Path | None = None
+    rerun_spawn: bool = False
+    rerun_save: Path | None = None
 
 
 def default_start(scenario: Scenario) -> tuple[float, float, float]:
@@ -129,6 +133,11 @@ def run_in_sim(spec: SimRunSpec, log: RunLog | None = None) -> RunSummary:
         log = recorder
     elif log is None:
         log = MemoryLog()
+    if spec.rerun_spawn or spec.rerun_save is not None:
+        from hil.replay.rerun_export import LiveRerunLog  # rerun only when asked for
+
+        log = LiveRerunLog.open(scenario, spawn=spec.rerun_spawn, save=spec.rerun_save,
+                                inner=log)
     try:
         runtime = build_runtime(scenario, world, log, spec.loop, synthesizer,
                                 ResynthesisMode.INLINE)
@@ -149,4 +158,5 @@ def summarize(spec: SimRunSpec, scenario: Scenario, sim: SimWorld, stats: RunSta
         scenario=scenario, scenario_name=spec.scenario, seed=spec.seed,
         backend="sim", stats=stats, trajectory=truth[:, 1 + TR_ETA : 1 + TR_ETA + 3],
         velocity=truth[rows, 1 + TR_NU : 1 + TR_NU + 3].reshape(-1, 3), wall_s=wall_s,
-        log=None if spec.out_dir is None else str(spec.out_dir))
+        log=None if spec.out_dir is None else str(spec.out_dir),
+        nominal_s=1.0 / spec.loop.loop_hz)

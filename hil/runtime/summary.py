@@ -86,6 +86,9 @@ class RunSummary:
         rejected_samples: Sensor samples the observer refused.
         pose_losses: Times the pose feed went stale.
         tracking: Tracking error against the reference.
+        period_jitter_p99_ms: 99th percentile of |tick period - nominal| (ms); zero
+            in simulated time.
+        overruns: Ticks that started more than one period late.
         log: Where the run's log is (None when not recorded).
     """
 
@@ -107,6 +110,8 @@ class RunSummary:
     rejected_samples: int
     pose_losses: int
     tracking: TrackingError
+    period_jitter_p99_ms: float
+    overruns: int
     log: str | None
 
     def to_json(self) -> str:
@@ -162,6 +167,11 @@ class RunSummary:
             "rejected samples / pose losses", f"{self.rejected_samples} / {self.pose_losses}", "-"
         )
         table.add_row(
+            "loop period jitter p99 / overruns",
+            f"{self.period_jitter_p99_ms:.2f} ms / {self.overruns}",
+            "-",
+        )
+        table.add_row(
             "run time (simulated / wall)", f"{self.duration_s:.1f} s / {self.wall_s:.2f} s", "-"
         )
         console.print(table)
@@ -180,6 +190,7 @@ def summarize_run(
     velocity: FloatArray,
     wall_s: float,
     log: str | None,
+    nominal_s: float = 0.05,
 ) -> RunSummary:
     """Summarize a finished run.
 
@@ -194,6 +205,7 @@ def summarize_run(
         velocity: Body velocity at each tick of `stats`, shape (len(stats.t_ns), 3).
         wall_s: Wall-clock duration (s).
         log: Where the run is recorded.
+        nominal_s: The loop's nominal period (s).
     """
     clearance = hull_clearance_series(scenario, trajectory)
     synth = stats.synthesis_seconds or [math.nan]
@@ -217,5 +229,15 @@ def summarize_run(
         rejected_samples=stats.rejected_samples,
         pose_losses=stats.pose_losses,
         tracking=TrackingError.between(velocity, np.asarray(stats.nu_ref).reshape(-1, 3)),
+        period_jitter_p99_ms=period_jitter_p99_ms(stats.tick_wall_ns, nominal_s),
+        overruns=stats.overruns,
         log=log,
     )
+
+
+def period_jitter_p99_ms(tick_ns: list[int], nominal_s: float) -> float:
+    """Return the 99th percentile of |period - nominal| over consecutive ticks (ms)."""
+    if len(tick_ns) < 2:
+        return 0.0
+    periods = np.diff(np.asarray(tick_ns, dtype=np.int64)).astype(np.float64) / 1e6
+    return float(np.percentile(np.abs(periods - nominal_s * 1e3), 99))

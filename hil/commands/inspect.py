@@ -1,0 +1,128 @@
+"""`hil inspect LOG [-o run.rrd] [--spawn]`: look at a recorded run in Rerun.
+
+Converts a run to an ``.rrd`` file (or streams it to a new viewer with
+``--spawn``): the arena top-down with the real and inflated obstacles, the
+targets, the hull at every pose and the trajectory; the controller's view at
+each decision (safe inputs as predicted arcs, the chosen one, the winning set at
+the current heading cell, re-synthesized for the recorded layout); and the time
+series (velocity tracking, tracking error against the margin, thrusters, value,
+synthesis time, events), laid out by a blueprint. Never modifies the log. A log
+that cannot be read gets a one-line error on stderr and exit status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+HELP = "Open a recorded run in Rerun (write an .rrd, or --spawn the viewer)."
+
+_PROG = "hil inspect"
+DEFAULT_BUDGET_S = 3.0
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Declare `LOG`, `-o/--output`, `--spawn` and `--no-winning-set`."""
+    parser.add_argument("log", metavar="LOG", help="bag directory, or a .mcap file")
+    parser.add_argument(
+        "-o",
+        "--output",
+        metavar="RRD",
+        type=Path,
+        default=None,
+        help="the .rrd file to write (default: LOG's name with .rrd, in the current directory)",
+    )
+    parser.add_argument(
+        "--spawn",
+        action="store_true",
+        help="open the Rerun viewer and stream the run to it (writes no file unless -o is given)",
+    )
+    parser.add_argument(
+        "--synthesis-budget",
+        type=float,
+        default=DEFAULT_BUDGET_S,
+        metavar="S",
+        help=f"seconds allowed for re-synthesizing the winning set (default {DEFAULT_BUDGET_S:g}); "
+        "a run whose obstacles keep moving has one layout per decision",
+    )
+    parser.add_argument(
+        "--no-winning-set",
+        action="store_true",
+        help="leave out the winning set (skips re-synthesizing the controller)",
+    )
+
+
+def default_output(log: Path) -> Path:
+    """Return ``<LOG name>.rrd`` in the current directory."""
+    name = log.resolve().name
+    return Path(f"{Path(name).stem if log.suffix == '.mcap' else name}.rrd")
+
+
+def _inside(path: Path, log: Path) -> bool:
+    """Return True when writing `path` would touch the log."""
+    out, src = path.resolve(), log.resolve()
+    return out == src or (src.is_dir() and src in out.parents)
+
+
+def _error(message: str) -> int:
+    print(f"{_PROG}: error: {message}", file=sys.stderr)
+    return 2
+
+
+def _note(message: str) -> None:
+    print(f"{_PROG}: note: {message}", file=sys.stderr)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Convert or show `args.log`.
+
+    Returns:
+        0 on success; 2 when the log cannot be read or the output not written.
+    """
+    from hil.replay.errors import ReplayError
+    from hil.replay.run_data import load_run
+
+    log = Path(args.log)
+    output: Path | None = args.output
+    if output is None and not args.spawn:
+        output = default_output(log)
+    if output is not None and log.exists() and _inside(output, log):
+        return _error(f"output {str(output)!r} would write into the log {str(log)!r}")
+    try:
+        data = load_run(log)
+    except (ReplayError, ValueError) as err:
+        return _error(str(err).splitlines()[0] if str(err) else type(err).__name__)
+    for problem in data.info.problems:
+        _note(problem)
+    if data.skipped:
+        _note(
+            f"{len(data.skipped)} message(s) do not decode and are left out; first: "
+            f"{data.skipped[0].reason}"
+        )
+    from hil.replay.controller_view import controller_view, scenario_for
+
+    scenario, note = scenario_for(data)
+    if note:
+        _note(note)
+    view = None
+    if scenario is not None and not args.no_winning_set:
+        view = controller_view(data, scenario, budget_s=args.synthesis_budget)
+        if view.note:
+            _note(view.note)
+    from hil.replay import rerun_export
+
+    try:
+        if output is not None:
+            stats = rerun_export.write_rrd(data, output, scenario, view)
+            print(
+                f"wrote {output} ({stats.bytes / 1e6:.2f} MB, {stats.rows} rows, "
+                f"{len(data.decisions)} decisions) in {stats.seconds:.2f} s"
+            )
+        if args.spawn:
+            rerun_export.spawn_viewer(data, scenario, view)
+    except (rerun_export.ViewerError, rerun_export.RrdWriteError) as err:
+        return _error(str(err))
+    except OSError as err:
+        return _error(f"cannot write {str(output)!r}: {err.strerror or err}")
+    return 0

@@ -1,0 +1,87 @@
+"""`hil plot LOG -o run.png`: a one-page picture of a recorded run.
+
+The arena with obstacles, targets, trajectory and hull outlines, beside velocity
+tracking per axis (like the paper's Fig. 6-8). Never modifies the log. A log that
+cannot be read gets a one-line error on stderr and exit status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+HELP = "Draw a recorded run: arena with trajectory and hull, velocity tracking (PNG)."
+
+_PROG = "hil plot"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Declare `LOG`, `-o/--output`, `--dpi` and `--hull-every`."""
+    parser.add_argument("log", metavar="LOG", help="bag directory, or a .mcap file")
+    parser.add_argument(
+        "-o", "--output", metavar="PNG", type=Path, required=True, help="the PNG file to write"
+    )
+    parser.add_argument(
+        "--dpi",
+        type=int,
+        default=None,
+        help="pixels per inch (default 110: a 1430 x 715 px picture)",
+    )
+    parser.add_argument(
+        "--hull-every",
+        type=float,
+        default=None,
+        metavar="S",
+        help="seconds between two hull outlines (default 5)",
+    )
+
+
+def _error(message: str) -> int:
+    print(f"{_PROG}: error: {message}", file=sys.stderr)
+    return 2
+
+
+def run(args: argparse.Namespace) -> int:
+    """Draw `args.log` into `args.output`.
+
+    Returns:
+        0 on success; 2 when the log cannot be read or the picture not written.
+    """
+    from hil.replay.errors import ReplayError
+    from hil.replay.run_data import load_run
+
+    log, output = Path(args.log), Path(args.output)
+    if output.suffix.lower() != ".png":
+        return _error(f"output {str(output)!r} must end in .png")
+    if log.exists() and (
+        output.resolve() == log.resolve()
+        or (log.is_dir() and log.resolve() in output.resolve().parents)
+    ):
+        return _error(f"output {str(output)!r} would write into the log {str(log)!r}")
+    if args.dpi is not None and not 20 <= args.dpi <= 600:
+        return _error(f"--dpi must be in [20, 600], got {args.dpi!r}")
+    if args.hull_every is not None and not args.hull_every > 0:
+        return _error(f"--hull-every must be positive, got {args.hull_every!r}")
+    try:
+        data = load_run(log)
+    except (ReplayError, ValueError) as err:
+        return _error(str(err).splitlines()[0] if str(err) else type(err).__name__)
+    from hil.replay.controller_view import scenario_for
+    from hil.replay.plot import DEFAULT_DPI, HULL_EVERY_S, save_run_figure
+
+    scenario, note = scenario_for(data)
+    if note:
+        print(f"{_PROG}: note: {note}", file=sys.stderr)
+    try:
+        save_run_figure(
+            data,
+            scenario,
+            output,
+            dpi=args.dpi or DEFAULT_DPI,
+            hull_every_s=args.hull_every or HULL_EVERY_S,
+        )
+    except OSError as err:
+        return _error(f"cannot write {str(output)!r}: {err.strerror or err}")
+    print(f"wrote {output}")
+    return 0
