@@ -60,6 +60,8 @@ def _summary(docked: bool, t: float | None, clearance: float, contacts: int) -> 
         rejected_samples=0,
         pose_losses=0,
         tracking=TrackingError((0.01, 0.02, 1.0), (0.1, 0.1, 5.0), 100),
+        period_jitter_p99_ms=0.0,
+        overruns=0,
         log=None,
     )
 

@@ -7,7 +7,9 @@ own view: hull clearance to the real obstacles at every physics step.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -30,13 +32,8 @@ def cache_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return tmp_path_factory.mktemp("tables")
 
 
-def _spec(cache_dir: Path, **kw: object) -> SimRunSpec:
-    return SimRunSpec(
-        scenario="coarse",
-        loop=kw.pop("loop", LOOP),  # type: ignore[arg-type]
-        cache_dir=cache_dir,
-        **kw,
-    )  # type: ignore[arg-type]
+def _spec(cache_dir: Path, **kw: Any) -> SimRunSpec:
+    return replace(SimRunSpec(scenario="coarse", loop=LOOP, cache_dir=cache_dir), **kw)
 
 
 def test_docks_without_contact_and_the_bag_holds_every_decision(
