@@ -15,6 +15,7 @@ BENCHMARKS = {
     "observer": "bench.observer",
     "synthesis": "bench.synthesis",
     "recorder": "bench.recorder",
+    "replay": "bench.replay",
     "rerun_export": "bench.rerun_export",
 }
 

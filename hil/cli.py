@@ -35,6 +35,8 @@ COMMANDS: dict[str, str] = {
     "vessel": "vessel",
     "sim-vessel": "sim_vessel",
     "synth": "synth",
+    "replay": "replay",
+    "record-suite": "record_suite",
     "info": "info",
     "inspect": "inspect",
     "plot": "plot",

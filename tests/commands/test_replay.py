@@ -1,0 +1,129 @@
+"""`hil replay`: reports, JSON, JUnit, exit status; one clear line for a bad log."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import hashlib
+import json
+import shutil
+from pathlib import Path
+from xml.etree import ElementTree as ET
+
+import pytest
+
+from hil.commands import replay
+from hil.commands.record_suite import write_bag
+from hil.replay.reader import BagReader
+from hil.replay.recorder import RecorderConfig, RunInfo
+from hil.replay.records import Decision
+
+ROOT = Path(__file__).resolve().parents[2]
+LOG = ROOT / "logs" / "coarse-high-seed2"
+FOREIGN_BAGS = ROOT.parent / "shared" / "foreign_bags"
+
+
+def tree_digest(path: Path) -> dict[str, str]:
+    files = [path] if path.is_file() else sorted(p for p in path.rglob("*") if p.is_file())
+    return {str(p): hashlib.sha256(p.read_bytes()).hexdigest() for p in files}
+
+
+def run_replay(*argv: str) -> int:
+    parser = argparse.ArgumentParser()
+    replay.add_arguments(parser)
+    return replay.run(parser.parse_args(list(argv)))
+
+
+def test_clean_log_passes_with_a_report_and_junit(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    before = tree_digest(LOG)
+    junit = tmp_path / "replay.xml"
+    assert run_replay(str(LOG), "--junit", str(junit), "--json") == 0
+    out, err = capsys.readouterr()
+    summary = json.loads(out.strip().splitlines()[-1])
+    assert summary["exit_code"] == 0
+    assert summary["reports"][0]["checks"][0]["name"] == "decisions"
+    assert "[   ok] decisions:" in err  # with --json the report goes to stderr
+    assert "no regression" in err
+    suite = ET.parse(junit).getroot().find("testsuite")
+    assert suite is not None
+    assert suite.get("failures") == "0"
+    assert tree_digest(LOG) == before
+
+
+def test_tampered_log_exits_1_and_names_the_time(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    with BagReader(LOG) as reader:
+        info = RunInfo.from_custom_data(reader.info.custom)
+        records = [r for _, _, r in reader.records()]
+    assert info is not None
+    index, decision = next(
+        (i, r)
+        for i, r in enumerate(records)
+        if isinstance(r, Decision) and len(r.safe_input_indices) >= 2
+    )
+    records[index] = dataclasses.replace(decision, chosen_index=-1, chosen_input=(0.0, 0.0, 0.0))
+    copy = tmp_path / "tampered"
+    write_bag(copy, info, records, RecorderConfig(split_s=1e9, flush_s=1e9, threaded=False))
+    assert run_replay(str(copy), "--no-stack") == 1
+    out = capsys.readouterr().out
+    assert "[ FAIL] decisions: 1 of" in out
+    assert f"t={decision.t_ns / 1e9:.3f} s: chosen input differ" in out
+    assert "REGRESSION" in out
+
+
+def test_missing_log_is_one_line_and_exit_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert run_replay(str(tmp_path / "nope")) == 2
+    err = capsys.readouterr().err
+    assert f"hil replay: {tmp_path / 'nope'}: " in err
+    assert "does not exist" in err
+    assert "Traceback" not in err
+
+
+@pytest.mark.parametrize(
+    "name",
+    [
+        "mcap_cdr_test",
+        "protobuf_foxglove_log.mcap",
+        "split_no_metadata",
+        "truncated_60pct",
+        "bitflip_middle",
+    ],
+)
+def test_foreign_log_is_one_line_and_exit_2(name: str, capsys: pytest.CaptureFixture[str]) -> None:
+    path = FOREIGN_BAGS / name
+    if not path.exists():
+        pytest.skip(f"{path} is not available")
+    before = tree_digest(path)
+    assert run_replay(str(path)) == 2
+    err = capsys.readouterr().err
+    lines = [line for line in err.splitlines() if line.startswith("hil replay:")]
+    assert len(lines) == 1
+    assert "Traceback" not in err
+    assert "internal error" not in err
+    assert tree_digest(path) == before
+
+
+def test_log_of_another_scenario_exits_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    copy = tmp_path / "run"
+    shutil.copytree(LOG, copy)
+    assert run_replay(str(copy), "--scenario", "paper") == 2
+    assert "another scenario" in capsys.readouterr().err
+
+
+def test_bad_tolerance_exits_2(capsys: pytest.CaptureFixture[str]) -> None:
+    assert run_replay(str(LOG), "--tolerance", "surge=abc") == 2
+    assert "'surge=abc'" in capsys.readouterr().err
+    assert run_replay(str(LOG), "--pose-delay-ms", "-5") == 2
+    assert "pose_delay_ns" in capsys.readouterr().err
+
+
+def test_enforced_tolerance_fails_the_clean_log(capsys: pytest.CaptureFixture[str]) -> None:
+    assert run_replay(str(LOG), "--no-stack", "--tolerance", "surge=0.001") == 1
+    assert "[ FAIL] tracking:" in capsys.readouterr().out
