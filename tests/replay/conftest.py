@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import pytest
-from replay_streams import one_of_each
 
 from hil.replay.messages import Record
+from tests.replay.replay_streams import one_of_each
 
 
 @pytest.fixture

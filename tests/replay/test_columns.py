@@ -9,7 +9,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 from mcap.writer import Writer as McapWriter
-from replay_streams import one_of_each
 
 from hil.adapters.samples import Frame, ImuSample, PoseSample
 from hil.replay import topics
@@ -19,6 +18,7 @@ from hil.replay.errors import BagError, MessageDecodeError
 from hil.replay.messages import encode
 from hil.replay.reader import BagReader
 from hil.replay.recorder import Recorder, RecorderConfig
+from tests.replay.replay_streams import one_of_each
 
 
 @pytest.fixture

@@ -8,7 +8,6 @@ from typing import Any
 import pytest
 from mcap.records import Schema
 from mcap_ros2.decoder import DecoderFactory
-from replay_streams import one_of_each
 
 from hil.adapters.samples import PoseSample, ThrusterCommand
 from hil.replay import topics
@@ -16,6 +15,7 @@ from hil.replay import typestore as ts
 from hil.replay.errors import RecordValueError
 from hil.replay.messages import Record, encode, to_record
 from hil.replay.records import Decision, Event, EventLevel, StateEstimate
+from tests.replay.replay_streams import one_of_each
 
 
 def assert_same(got: Record | None, want: Record) -> None:

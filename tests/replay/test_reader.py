@@ -11,7 +11,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 from mcap.writer import Writer as McapWriter
-from replay_streams import FOREIGN_BAGS, foreign_bag_paths, one_of_each, tree_digest
 
 from hil.adapters.samples import ImuSample, PoseSample
 from hil.replay import topics
@@ -29,6 +28,7 @@ from hil.replay.errors import (
 from hil.replay.messages import encode
 from hil.replay.reader import BagReader, describe
 from hil.replay.recorder import Recorder, RecorderConfig, RunInfo
+from tests.replay.replay_streams import FOREIGN_BAGS, foreign_bag_paths, one_of_each, tree_digest
 
 needs_foreign = pytest.mark.skipif(
     not FOREIGN_BAGS.is_dir(), reason=f"no foreign bags at {FOREIGN_BAGS}"

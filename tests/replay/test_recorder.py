@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
-from replay_streams import one_of_each
 from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import Reader as RosbagsReader
 
@@ -26,6 +25,7 @@ from hil.replay.reader import BagReader
 from hil.replay.recorder import Recorder, RecorderConfig, RunInfo
 from hil.replay.records import Decision, EventLevel, ForceCommand, StateEstimate
 from hil.replay.typestore import typestore
+from tests.replay.replay_streams import one_of_each
 
 R = TypeVar("R", bound=Record)
 

@@ -6,7 +6,6 @@ import shutil
 from pathlib import Path
 
 import pytest
-from replay_streams import FOREIGN_BAGS, tree_digest
 from rosbags.highlevel import AnyReader
 
 from hil.adapters.samples import ImuSample
@@ -14,6 +13,7 @@ from hil.replay.errors import BagNotFoundError, RecoveryError
 from hil.replay.reader import BagReader, describe
 from hil.replay.recorder import Recorder, RecorderConfig
 from hil.replay.recover import inspect_recovery, recover
+from tests.replay.replay_streams import FOREIGN_BAGS, tree_digest
 
 
 def _recorded(tmp_path: Path, n: int = 400) -> Path:

@@ -12,7 +12,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from replay_streams import foreign_bag_paths, tree_digest
 
 from hil.adapters.log import RecordedRun, Stream, read_log
 from hil.commands.record_suite import write_bag
@@ -34,6 +33,7 @@ from hil.replay.replayer import (
 )
 from hil.runtime.assembly import layout_from_scenario
 from hil.scenario import TrackingMargin, load_scenario
+from tests.replay.replay_streams import foreign_bag_paths, tree_digest
 
 LOGS = Path(__file__).resolve().parents[2] / "logs"
 SUITE_LOGS = sorted(p for p in LOGS.iterdir() if (p / "metadata.yaml").is_file())
