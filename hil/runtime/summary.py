@@ -129,7 +129,7 @@ class RunSummary:
         data = clean(asdict(self))
         assert isinstance(data, dict)
         data["tracking_rms"] = data.pop("tracking")["rms"]
-        data["tracking_max_abs"] = list(self.tracking.max_abs)
+        data["tracking_max_abs"] = clean(list(self.tracking.max_abs))
         return json.dumps(data, sort_keys=True)
 
     def render(self, console: Console | None = None) -> None:

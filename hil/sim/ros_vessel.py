@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import threading
 import time
+from dataclasses import replace
 from typing import Any
 
 from hil.adapters.ros import (
@@ -95,15 +96,18 @@ class SimVesselNode:
                     lambda msg, n=name: self._on_wrench(n, msg), cfg.qos_depth)
             executor = SingleThreadedExecutor(context=context)
             executor.add_node(node)
+            # In wall time, samples carry the node's wall clock, as the real sensors do.
+            offset_ns = 0 if clock_pub is not None else int(node.get_clock().now().nanoseconds)
             self._loop(executor, pose_pub, imu_pub, clock_pub, PoseWithCovarianceStamped, Imu,
-                       Clock, duration_s)
+                       Clock, duration_s, offset_ns)
             executor.shutdown()
         finally:
             node.destroy_node()
             context.try_shutdown()
 
     def _loop(self, executor: Any, pose_pub: Any, imu_pub: Any, clock_pub: Any,
-              pose_type: Any, imu_type: Any, clock_type: Any, duration_s: float | None) -> None:
+              pose_type: Any, imu_type: Any, clock_type: Any, duration_s: float | None,
+              offset_ns: int) -> None:
         world = self.world
         wall_start = time.monotonic()
         cycle_ns = round(_CYCLE_S * NS_PER_S)
@@ -126,11 +130,12 @@ class SimVesselNode:
                 clock_pub.publish(msg)
             for pose in world.pose.poll():
                 out = pose_type()
-                fill_pose_msg(out, pose, self.config.transform, self.config.pose_frame_id)
+                fill_pose_msg(out, replace(pose, t_ns=pose.t_ns + offset_ns),
+                              self.config.transform, self.config.pose_frame_id)
                 pose_pub.publish(out)
             for imu in world.imu.poll():
                 out = imu_type()
-                fill_imu_msg(out, imu)
+                fill_imu_msg(out, replace(imu, t_ns=imu.t_ns + offset_ns))
                 imu_pub.publish(out)
             # Pace simulated time at `speed` x wall time.
             ahead_s = (t_ns / NS_PER_S) / self.speed - (time.monotonic() - wall_start)
