@@ -242,7 +242,7 @@ def describe_change(old: Path, new: Path) -> str:
 
 
 def _manifest(runs: Iterable[SuiteRun], existing: dict[str, object]) -> dict[str, object]:
-    from hil.replay.replayer import spec_to_json
+    from hil.runtime.sim_run import spec_to_json
 
     entries = dict(existing)
     for run in runs:

@@ -95,6 +95,8 @@ class RunInfo:
         hil_version: Version of the hil package that recorded.
         git_revision: Git commit of the code that recorded ("" when unknown).
         backend: World the run ran in: "sim", "ros", "log" or "" when unknown.
+        run_spec: JSON of the simulated run's specification (start, faults, obstacle
+            motions), so a replay can re-simulate it exactly; "" on the vessel.
     """
 
     scenario_file: str = ""
@@ -103,13 +105,20 @@ class RunInfo:
     hil_version: str = __version__
     git_revision: str = ""
     backend: str = ""
+    run_spec: str = ""
 
     @staticmethod
     def current(
-        scenario_file: str = "", scenario_hash: str = "", seed: int | None = None, backend: str = ""
+        scenario_file: str = "",
+        scenario_hash: str = "",
+        seed: int | None = None,
+        backend: str = "",
+        run_spec: str = "",
     ) -> RunInfo:
         """Describe a run of this checkout (version and git revision filled in)."""
-        return RunInfo(scenario_file, scenario_hash, seed, __version__, git_revision(), backend)
+        return RunInfo(
+            scenario_file, scenario_hash, seed, __version__, git_revision(), backend, run_spec
+        )
 
     def custom_data(self) -> dict[str, str]:
         """Return the string key-value pairs stored in ``metadata.yaml``."""
@@ -121,6 +130,7 @@ class RunInfo:
             "hil_version": self.hil_version,
             "git_revision": self.git_revision,
             "backend": self.backend,
+            "run_spec": self.run_spec,
         }
 
     @staticmethod
@@ -136,6 +146,7 @@ class RunInfo:
             hil_version=data.get("hil_version", ""),
             git_revision=data.get("git_revision", ""),
             backend=data.get("backend", ""),
+            run_spec=data.get("run_spec", ""),
         )
 
 

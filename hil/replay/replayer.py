@@ -40,7 +40,6 @@ from numpy.typing import NDArray
 from hil.adapters.interfaces import ThrusterSinkError
 from hil.adapters.log import LogConfig, LogWorld, RecordedRun, Stream, read_log
 from hil.adapters.samples import ObstacleLayout, Rectangle, ThrusterCommand
-from hil.adapters.sim import ObstacleMotion, ThrusterOutage
 from hil.controllers.symbolic import NoWinningSetError, SymbolicError, Synthesizer
 from hil.geometry import wrap_angles
 from hil.replay.errors import ReplayError
@@ -54,6 +53,7 @@ from hil.runtime.sim_run import (
     build_runtime,
     run_in_sim,
     scenario_hash,
+    spec_from_json,
     synthesizer_for,
 )
 from hil.runtime.stack import SymbolicController
@@ -801,58 +801,6 @@ def check_stack(run: RecordedRun, controllers: ControllerCache, options: ReplayO
 # ------------------------------------------------------------------ closed loop
 
 
-def spec_to_json(spec: SimRunSpec) -> dict[str, Any]:
-    """Return the parts of a run specification a suite manifest keeps."""
-    return {
-        "scenario": spec.scenario,
-        "seed": spec.seed,
-        "start": None if spec.start is None else list(spec.start),
-        "pose_outages_s": [list(p) for p in spec.pose_outages_s],
-        "thruster_outages": [[o.start_s, o.stop_s] for o in spec.thruster_outages],
-        "motions": [
-            {
-                "index": m.index,
-                "velocity_mps": list(m.velocity_mps),
-                "start_s": m.start_s,
-                "stop_s": m.stop_s,
-            }
-            for m in spec.motions
-        ],
-        "max_duration_s": spec.loop.max_duration_s,
-    }
-
-
-def spec_from_json(data: dict[str, Any]) -> SimRunSpec:
-    """Rebuild a run specification from :func:`spec_to_json`'s form.
-
-    Raises:
-        ValueError: A field is missing or malformed.
-    """
-    try:
-        start = data.get("start")
-        return SimRunSpec(
-            scenario=str(data["scenario"]),
-            seed=int(data["seed"]),
-            start=None if start is None else (float(start[0]), float(start[1]), float(start[2])),
-            loop=LoopConfig(max_duration_s=float(data.get("max_duration_s", 600.0))),
-            pose_outages_s=tuple((float(a), float(b)) for a, b in data.get("pose_outages_s", [])),
-            thruster_outages=tuple(
-                ThrusterOutage(float(a), float(b)) for a, b in data.get("thruster_outages", [])
-            ),
-            motions=tuple(
-                ObstacleMotion(
-                    int(m["index"]),
-                    (float(m["velocity_mps"][0]), float(m["velocity_mps"][1])),
-                    float(m["start_s"]),
-                    float(m["stop_s"]),
-                )
-                for m in data.get("motions", [])
-            ),
-        )
-    except (KeyError, TypeError, IndexError) as err:
-        raise ValueError(f"malformed run specification {data!r}: {err!r}") from err
-
-
 def recorded_spec(run: RecordedRun) -> tuple[SimRunSpec, str]:
     """Return the specification that reproduces `run` and where it came from.
 
@@ -873,6 +821,11 @@ def recorded_spec(run: RecordedRun) -> tuple[SimRunSpec, str]:
         if isinstance(entry, dict):
             return spec_from_json(entry), f"{MANIFEST} entry"
     info = run.info.run
+    if info is not None and info.run_spec:
+        try:
+            return spec_from_json(json.loads(info.run_spec)), "run specification in the metadata"
+        except ValueError:
+            pass  # a damaged entry: fall back to scenario, seed and first pose
     if info is None or info.seed is None or not info.scenario_file or not len(run.poses):
         raise ScenarioMismatchError(
             f"{str(run.path)!r} lacks the scenario, seed or poses needed to re-simulate it"

@@ -10,10 +10,12 @@ picklable, so a campaign can map it over processes.
 from __future__ import annotations
 
 import hashlib
+import json
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -127,8 +129,11 @@ def run_in_sim(spec: SimRunSpec, log: RunLog | None = None) -> RunSummary:
     synthesizer = synthesizer_for(scenario, spec.cache_dir)
     recorder: Recorder | None = None
     if spec.out_dir is not None:
+        # The full specification goes into the metadata, so a replay re-simulates exactly.
+        run_spec = json.dumps(spec_to_json(replace(spec, start=start)))
         recorder = Recorder(spec.out_dir, RunInfo.current(spec.scenario, scenario_hash(scenario),
-                                                          spec.seed, backend="sim"))
+                                                          spec.seed, backend="sim",
+                                                          run_spec=run_spec))
         recorder.open()
         log = recorder
     elif log is None:
@@ -160,3 +165,55 @@ def summarize(spec: SimRunSpec, scenario: Scenario, sim: SimWorld, stats: RunSta
         velocity=truth[rows, 1 + TR_NU : 1 + TR_NU + 3].reshape(-1, 3), wall_s=wall_s,
         log=None if spec.out_dir is None else str(spec.out_dir),
         nominal_s=1.0 / spec.loop.loop_hz)
+
+
+def spec_to_json(spec: SimRunSpec) -> dict[str, Any]:
+    """Return the parts of a run specification a suite manifest keeps."""
+    return {
+        "scenario": spec.scenario,
+        "seed": spec.seed,
+        "start": None if spec.start is None else list(spec.start),
+        "pose_outages_s": [list(p) for p in spec.pose_outages_s],
+        "thruster_outages": [[o.start_s, o.stop_s] for o in spec.thruster_outages],
+        "motions": [
+            {
+                "index": m.index,
+                "velocity_mps": list(m.velocity_mps),
+                "start_s": m.start_s,
+                "stop_s": m.stop_s,
+            }
+            for m in spec.motions
+        ],
+        "max_duration_s": spec.loop.max_duration_s,
+    }
+
+
+def spec_from_json(data: dict[str, Any]) -> SimRunSpec:
+    """Rebuild a run specification from :func:`spec_to_json`'s form.
+
+    Raises:
+        ValueError: A field is missing or malformed.
+    """
+    try:
+        start = data.get("start")
+        return SimRunSpec(
+            scenario=str(data["scenario"]),
+            seed=int(data["seed"]),
+            start=None if start is None else (float(start[0]), float(start[1]), float(start[2])),
+            loop=LoopConfig(max_duration_s=float(data.get("max_duration_s", 600.0))),
+            pose_outages_s=tuple((float(a), float(b)) for a, b in data.get("pose_outages_s", [])),
+            thruster_outages=tuple(
+                ThrusterOutage(float(a), float(b)) for a, b in data.get("thruster_outages", [])
+            ),
+            motions=tuple(
+                ObstacleMotion(
+                    int(m["index"]),
+                    (float(m["velocity_mps"][0]), float(m["velocity_mps"][1])),
+                    float(m["start_s"]),
+                    float(m["stop_s"]),
+                )
+                for m in data.get("motions", [])
+            ),
+        )
+    except (KeyError, TypeError, IndexError) as err:
+        raise ValueError(f"malformed run specification {data!r}: {err!r}") from err

@@ -28,10 +28,9 @@ from hil.replay.replayer import (
     recompute,
     replay_log,
     resolve_scenario,
-    spec_from_json,
-    spec_to_json,
 )
 from hil.runtime.assembly import layout_from_scenario
+from hil.runtime.sim_run import spec_from_json, spec_to_json
 from hil.scenario import TrackingMargin, load_scenario
 from tests.replay.replay_streams import foreign_bag_paths, tree_digest
 

@@ -6,6 +6,7 @@ own view: hull clearance to the real obstacles at every physics step.
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import replace
 from pathlib import Path
@@ -19,7 +20,7 @@ from hil.replay.reader import BagReader
 from hil.replay.records import Decision
 from hil.runtime.events import EventCode
 from hil.runtime.loop import LoopConfig
-from hil.runtime.sim_run import SimRunSpec, run_in_sim
+from hil.runtime.sim_run import SimRunSpec, run_in_sim, spec_from_json
 from hil.runtime.trace import MemoryLog
 
 # Re-synthesize only when obstacles move: the timer adds nothing in a static arena
@@ -51,6 +52,9 @@ def test_docks_without_contact_and_the_bag_holds_every_decision(
         decisions = [r for _, _, r in reader.records() if isinstance(r, Decision)]
         assert reader.info.run is not None
         assert reader.info.run.seed == 1
+        spec = spec_from_json(json.loads(reader.info.run.run_spec))
+    assert spec.seed == 1
+    assert spec.start is not None  # the default start, written out for an exact re-simulation
     assert len(decisions) == summary.decisions
     assert all(d.winning for d in decisions)
     # Every chosen input was one of the safe inputs at its decision, until the target.
