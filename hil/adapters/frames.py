@@ -58,6 +58,17 @@ class ArenaTransform:
             if not math.isfinite(getattr(self, name)):
                 raise SampleError(f"arena transform field {name!r} is not finite")
 
+    def point_to_arena(self, north_m: float, east_m: float) -> tuple[float, float]:
+        """Map a point of the lab's NED world to arena (x, y) (m); no body offset."""
+        dn, de = north_m - self.origin_north_m, east_m - self.origin_east_m
+        ca, sa = math.cos(self.yaw_rad), math.sin(self.yaw_rad)
+        return ca * dn + sa * de, -sa * dn + ca * de
+
+    def point_to_lab(self, x_m: float, y_m: float) -> tuple[float, float]:
+        """Map an arena point (x, y) to the lab's (north, east) (m); inverse of the above."""
+        ca, sa = math.cos(self.yaw_rad), math.sin(self.yaw_rad)
+        return self.origin_north_m + ca * x_m - sa * y_m, self.origin_east_m + sa * x_m + ca * y_m
+
     def to_arena(self, pose: PoseSample) -> PoseSample:
         """Map a mocap pose in the lab's NED frame to the vessel's pose in the arena."""
         if pose.frame is Frame.ARENA:
@@ -67,12 +78,11 @@ class ArenaTransform:
         c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
         north = pose.x_m + c * self.body_offset_x_m - s * self.body_offset_y_m
         east = pose.y_m + s * self.body_offset_x_m + c * self.body_offset_y_m
-        dn, de = north - self.origin_north_m, east - self.origin_east_m
-        ca, sa = math.cos(self.yaw_rad), math.sin(self.yaw_rad)
+        x_m, y_m = self.point_to_arena(north, east)
         return PoseSample(
             t_ns=pose.t_ns,
-            x_m=ca * dn + sa * de,
-            y_m=-sa * dn + ca * de,
+            x_m=x_m,
+            y_m=y_m,
             yaw_rad=wrap_angle(pose.yaw_rad + self.body_yaw_rad - self.yaw_rad),
             frame=Frame.ARENA,
         )
@@ -81,9 +91,7 @@ class ArenaTransform:
         """Map a vessel pose in the arena to the mocap body's pose in the lab (inverse)."""
         if pose.frame is not Frame.ARENA:
             raise SampleError(f"expected an arena pose, got frame {pose.frame.value!r}")
-        ca, sa = math.cos(self.yaw_rad), math.sin(self.yaw_rad)
-        north = self.origin_north_m + ca * pose.x_m - sa * pose.y_m
-        east = self.origin_east_m + sa * pose.x_m + ca * pose.y_m
+        north, east = self.point_to_lab(pose.x_m, pose.y_m)
         yaw = wrap_angle(pose.yaw_rad + self.yaw_rad - self.body_yaw_rad)
         c, s = math.cos(yaw), math.sin(yaw)
         return PoseSample(

@@ -19,7 +19,14 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from hil.adapters.frames import ArenaTransform, quaternion_from_yaw, yaw_from_quaternion
-from hil.adapters.samples import Frame, ImuSample, PoseSample, SampleError, ThrusterCommand
+from hil.adapters.samples import (
+    Frame,
+    ImuSample,
+    ObstacleLayout,
+    PoseSample,
+    SampleError,
+    ThrusterCommand,
+)
 from hil.geometry import wrap_angle
 
 NS_PER_S = 1_000_000_000
@@ -38,6 +45,9 @@ class RosTopics:
     tunnel: str = "/voyager/thruster/tunnel/command"
     port: str = "/voyager/thruster/port/command"
     starboard: str = "/voyager/thruster/starboard/command"
+    obstacles: str = ""
+    """geometry_msgs/PoseArray of tracked obstacle centres (lab frame), one pose per
+    obstacle in the scenario's order; "" keeps the scenario's layout fixed."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -240,6 +250,73 @@ class RosImuSource:
         return sorted(self._inbox.drain(), key=lambda s: s.t_ns)
 
 
+class RosObstacleSource:
+    """Obstacles tracked by motion capture: the scenario's shapes at the reported centres.
+
+    Motion-capture noise would otherwise make every message a new layout (and a
+    re-synthesis): a layout changes only when some obstacle moved by `min_move_m`.
+
+    Args:
+        initial: The scenario's layout; obstacle n keeps its size and follows pose n.
+        transform: Lab frame to arena frame.
+        min_move_m: Smallest move of an obstacle centre that changes the layout (m).
+    """
+
+    def __init__(self, initial: ObstacleLayout, transform: ArenaTransform,
+                 min_move_m: float = 0.01) -> None:
+        self._layout = initial
+        self._transform = transform
+        self._min_move_m = min_move_m
+        self._lock = threading.Lock()
+        self.received = 0
+        self.rejected = 0
+
+    def latest(self) -> ObstacleLayout:
+        """Return the newest reported layout."""
+        with self._lock:
+            return self._layout
+
+    def on_message(self, msg: Any) -> None:
+        """Move each obstacle to its reported centre (a PoseArray in the lab frame)."""
+        self.received += 1
+        t_ns = stamp_to_ns(msg.header.stamp)
+        with self._lock:
+            current = self._layout.obstacles
+        if len(msg.poses) != len(current):
+            self.rejected += 1
+            return
+        moved = []
+        for rect, pose in zip(current, msg.poses, strict=True):
+            x, y = self._transform.point_to_arena(float(pose.position.x), float(pose.position.y))
+            if not (math.isfinite(x) and math.isfinite(y)):
+                self.rejected += 1
+                return
+            moved.append(rect.shifted(x - (rect.x_min_m + rect.x_max_m) / 2,
+                                      y - (rect.y_min_m + rect.y_max_m) / 2))
+        shift = max((math.hypot(n.x_min_m - o.x_min_m, n.y_min_m - o.y_min_m)
+                     for n, o in zip(moved, current, strict=True)), default=0.0)
+        if shift >= self._min_move_m:
+            with self._lock:
+                self._layout = ObstacleLayout(t_ns, tuple(moved))
+
+
+def fill_obstacle_msg(msg: Any, layout: ObstacleLayout, transform: ArenaTransform) -> None:
+    """Fill a PoseArray with the obstacles' centres in the lab frame (for simulators)."""
+    from geometry_msgs.msg import Pose
+
+    fill_stamp(msg.header.stamp, layout.t_ns)
+    msg.header.frame_id = "world_ned"
+    poses = []
+    for rect in layout.obstacles:
+        north, east = transform.point_to_lab((rect.x_min_m + rect.x_max_m) / 2,
+                                             (rect.y_min_m + rect.y_max_m) / 2)
+        pose = Pose()
+        pose.position.x, pose.position.y = north, east
+        pose.orientation.w = 1.0
+        poses.append(pose)
+    msg.poses = poses
+
+
 class RosThrusterSink:
     """Publishes thruster commands as the lab's three Wrench topics."""
 
@@ -292,7 +369,7 @@ class RosClock:
 
 
 class RosWorld:
-    """The stack's view of the vessel over ROS 2: pose, IMU, thrusters and the clock.
+    """The stack's view of the vessel over ROS 2: pose, IMU, obstacles, thrusters, clock.
 
     Use as a context manager; it owns its own rclpy context and executor thread,
     so several can coexist in one process (tests).
@@ -301,8 +378,13 @@ class RosWorld:
         config: Topics, QoS, frames and clock settings.
     """
 
-    def __init__(self, config: RosConfig | None = None) -> None:
+    def __init__(self, config: RosConfig | None = None,
+                 obstacles: ObstacleLayout | None = None) -> None:
         self.config = config or RosConfig()
+        # Tracked obstacles when a topic is configured and the layout to start from given.
+        self.obstacle_source: RosObstacleSource | None = None
+        if self.config.topics.obstacles and obstacles is not None:
+            self.obstacle_source = RosObstacleSource(obstacles, self.config.transform)
         self._pose_inbox = _Inbox()
         self._imu_inbox = _Inbox()
         self._context: Any = None
@@ -355,6 +437,11 @@ class RosWorld:
             PoseWithCovarianceStamped, cfg.topics.pose, self._on_pose, sensor_qos
         )
         self._node.create_subscription(Imu, cfg.topics.imu, self._on_imu, sensor_qos)
+        if self.obstacle_source is not None:
+            from geometry_msgs.msg import PoseArray
+
+            self._node.create_subscription(PoseArray, cfg.topics.obstacles,
+                                           self.obstacle_source.on_message, sensor_qos)
         publishers = {
             name: self._node.create_publisher(Wrench, getattr(cfg.topics, name), cfg.qos_depth)
             for name in ("tunnel", "port", "starboard")

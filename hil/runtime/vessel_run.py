@@ -17,6 +17,7 @@ from types import FrameType
 
 import numpy as np
 
+from hil.adapters.interfaces import ObstacleSource
 from hil.adapters.obstacles import StaticObstacleSource
 from hil.adapters.ros import RosConfig, RosWorld
 from hil.config import from_table, load_toml
@@ -84,12 +85,13 @@ def run_on_ros(config: VesselConfig, out_dir: Path | None = None) -> RunSummary:
     synthesizer = synthesizer_for(scenario)
     if out_dir is None:
         out_dir = Path(config.runs_dir) / f"{scenario.name}-vessel-{time.strftime('%Y%m%d-%H%M%S')}"
-    obstacles = StaticObstacleSource(layout_from_scenario(scenario))
-    with RosWorld(config.ros) as ros, Recorder(
+    layout = layout_from_scenario(scenario)
+    with RosWorld(config.ros, obstacles=layout) as ros, Recorder(
             out_dir, RunInfo.current(config.scenario, scenario_hash(scenario), None,
                                      backend="ros")) as recorder:
         assert ros.clock is not None
         assert ros.thruster_sink is not None
+        obstacles: ObstacleSource = ros.obstacle_source or StaticObstacleSource(layout)
         world = World(ros.clock, ros.pose_source, ros.imu_source, obstacles, ros.thruster_sink)
         runtime = build_runtime(scenario, world, recorder, config.loop, synthesizer,
                                 ResynthesisMode.THREAD)

@@ -14,15 +14,24 @@ import pytest
 from hil.adapters.frames import ArenaTransform
 from hil.adapters.ros import (
     RosConfig,
+    RosTopics,
     RosWorld,
     fill_imu_msg,
+    fill_obstacle_msg,
     fill_pose_msg,
     imu_from_msg,
     pose_from_msg,
     thruster_command_from_components,
     thruster_wrench_components,
 )
-from hil.adapters.samples import Frame, ImuSample, PoseSample, ThrusterCommand
+from hil.adapters.samples import (
+    Frame,
+    ImuSample,
+    ObstacleLayout,
+    PoseSample,
+    Rectangle,
+    ThrusterCommand,
+)
 
 rclpy = pytest.importorskip("rclpy")
 pytest.importorskip("rclpy.executors")
@@ -186,3 +195,44 @@ def test_dds_thruster_commands_reach_the_vessel(peer_and_world: tuple[_Peer, Ros
     assert peer.wrenches["tunnel"][-1].force.x == pytest.approx(0.5)
     assert peer.wrenches["port"][-1].force.y == pytest.approx(0.2)
     assert peer.wrenches["starboard"][-1].force.y == pytest.approx(-0.3)
+
+
+def test_dds_tracked_obstacles_move_the_layout() -> None:
+    domain = _domain_id() + 1
+    o1, o2 = Rectangle(1.75, 2.25, -3.0, 0.0), Rectangle(-1.25, -0.75, 0.0, 3.0)
+    initial = ObstacleLayout(0, (o1, o2))
+    config = RosConfig(transform=TRANSFORM, domain_id=domain,
+                       topics=RosTopics(obstacles="/voyager/obstacles"),
+                       node_name=f"stack_{os.getpid()}_{next(_NAMES)}")
+    peer = _Peer(domain)
+    publisher = peer.node.create_publisher(geometry_msgs.PoseArray, "/voyager/obstacles", 10)
+    moved = ObstacleLayout(3_000_000_000, (initial.obstacles[0].shifted(0.3, 0.0),
+                                           initial.obstacles[1].shifted(0.0, -0.2)))
+    msg = geometry_msgs.PoseArray()
+    fill_obstacle_msg(msg, moved, TRANSFORM)
+    jitter = geometry_msgs.PoseArray()  # a 2-mm wobble must not count as a move
+    fill_obstacle_msg(jitter, ObstacleLayout(1, (initial.obstacles[0].shifted(0.002, 0.0),
+                                                 initial.obstacles[1])), TRANSFORM)
+    with RosWorld(config, obstacles=initial) as world:
+        source = world.obstacle_source
+        assert source is not None
+        try:
+
+            def wobbled() -> bool:
+                publisher.publish(jitter)
+                return source.received >= 3
+
+            _wait_for(wobbled, peer)
+            assert source.latest() == initial
+
+            def arrived() -> bool:
+                publisher.publish(msg)
+                return source.latest().t_ns == moved.t_ns
+
+            _wait_for(arrived, peer)
+        finally:
+            peer.close()
+    got = source.latest().obstacles
+    for a, b in zip(got, moved.obstacles, strict=True):
+        assert a.x_min_m == pytest.approx(b.x_min_m)
+        assert a.y_max_m == pytest.approx(b.y_max_m)
