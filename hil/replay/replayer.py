@@ -781,11 +781,15 @@ def check_stack(run: RecordedRun, controllers: ControllerCache, options: ReplayO
         "commands": len(cmd_t),
     }
     if findings:
+        # Over ROS, which samples a tick saw depends on DDS arrival times, which the log
+        # does not hold: the re-run cannot be exact, so a difference only warns there.
+        over_ros = run.info.run is not None and run.info.run.backend == "ros"
+        note = " (a ROS run: sample arrival per tick is not recorded, advisory)" if over_ros else ""
         return Check(
             "stack",
-            Status.FAIL,
+            Status.WARN if over_ros else Status.FAIL,
             f"the re-run stack does not reproduce the recording, first at "
-            f"{time_s(findings[0].t_ns)}",
+            f"{time_s(findings[0].t_ns)}{note}",
             tuple(findings),
             metrics,
         )

@@ -76,7 +76,8 @@ def test_every_suite_log_replays_without_regression(log: Path, caches: ScenarioC
     assert report.error == ""
     assert report.status in (Status.PASS, Status.WARN), report.regressions
     assert report.check("decisions").status is Status.PASS
-    assert report.check("stack").status is Status.PASS
+    over_ros = "-ros-" in log.name  # recorded over DDS: the stack re-run is advisory there
+    assert report.check("stack").status is (Status.WARN if over_ros else Status.PASS)
     assert report.check("decisions").metrics["decisions"] > 10
 
 
