@@ -12,6 +12,10 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from hil.replay.replayer import ScenarioCache
 
 HELP = "replay recorded runs through the current code; non-zero exit on any regression"
 
@@ -60,6 +64,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "the simulated motion-capture latency)",
     )
     parser.add_argument(
+        "--rerun",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="also write DIR/<log>.replay.rrd: the recording with the replayed decisions "
+        "beside it and every difference marked (open with `rerun FILE`)",
+    )
+    parser.add_argument(
         "--scenario",
         default=None,
         metavar="SCENARIO",
@@ -70,6 +82,28 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def _one_line(err: BaseException) -> str:
     text = str(err).strip().splitlines()
     return text[0] if text else type(err).__name__
+
+
+def _write_replay_rrd(
+    log: Path, folder: Path, caches: ScenarioCache, scenario: str | None
+) -> str:
+    """Write the recording with its replayed decisions to an .rrd; return what happened."""
+    from hil.adapters.log import read_log
+    from hil.replay.errors import ReplayError
+    from hil.replay.replayer import replayed_decisions, resolve_scenario
+    from hil.replay.rerun_export import write_rrd
+    from hil.replay.run_data import load_run
+
+    out = folder / f"{log.name}.replay.rrd"
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        recorded = read_log(log)
+        chosen = resolve_scenario(recorded, scenario)
+        replayed = replayed_decisions(recorded, caches.get(chosen))
+        stats = write_rrd(load_run(log), out, chosen, None, replayed=replayed)
+    except (ReplayError, ValueError, OSError) as err:
+        return f"not written: {_one_line(err)}"
+    return f"{out} ({stats.bytes / 1e6:.1f} MB)"
 
 
 def run(args: argparse.Namespace) -> int:
@@ -105,6 +139,9 @@ def run(args: argparse.Namespace) -> int:
             )
         reports.append(report)
         print(render(report), file=out, flush=True)
+        if args.rerun is not None and not report.error:
+            written = _write_replay_rrd(path, args.rerun, caches, args.scenario)
+            print(f"  rerun: {written}", file=out, flush=True)
         if report.error:
             print(f"hil replay: {report.path}: {report.error}", file=sys.stderr)
     code = exit_code(reports)

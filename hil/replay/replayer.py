@@ -30,6 +30,7 @@ import json
 import math
 import re
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -391,30 +392,61 @@ def _mismatch(d: Decision, got: Recomputed, controller: SymbolicController) -> F
     )
 
 
-def check_decisions(run: RecordedRun, controllers: ControllerCache) -> Check:
-    """Recompute every recorded decision at its recorded state (see module docstring)."""
-    if not run.decisions:
-        return Check("decisions", Status.SKIP, "the log holds no decisions")
+def _recomputed(
+    run: RecordedRun, controllers: ControllerCache
+) -> Iterator[tuple[Decision, Recomputed | str, SymbolicAdapter | None]]:
+    """Yield each recorded decision with its recomputation (or why there is none)."""
     ready = _version_times(run)
     previous = np.zeros(3)
-    findings: list[Finding] = []
-    before = controllers.syntheses
     for d in run.decisions:
         layout = layout_at(run, ready.get(d.controller_version, d.t_ns))
         if layout is None:
-            findings.append(Finding("no obstacle layout recorded before this decision", d.t_ns))
+            yield d, "no obstacle layout recorded before this decision", None
             continue
         try:
             controller = controllers(layout)
         except NoWinningSetError as err:
-            findings.append(Finding(f"recorded a decision, but now: {err}", d.t_ns))
+            yield d, f"recorded a decision, but now: {err}", None
             continue
-        got = recompute(controller, np.array(d.state), previous)
+        yield d, recompute(controller, np.array(d.state), previous), controller
+        if d.chosen_index >= 0:
+            previous = np.array(d.chosen_input)
+
+
+def replayed_decisions(run: RecordedRun, controllers: ControllerCache) -> list[Decision]:
+    """Return the decisions the current code takes at the recorded states, in order.
+
+    A decision that cannot be recomputed (no layout, no winning set) comes back
+    with no safe input and no choice, so it shows as different.
+    """
+    out = []
+    for d, got, controller in _recomputed(run, controllers):
+        if isinstance(got, str) or controller is None:
+            out.append(Decision.from_arrays(d.t_ns, d.state, -1, math.inf, False, np.zeros((0, 3)),
+                                            np.zeros(0, dtype=np.int64), -1, d.controller_version,
+                                            d.scenario_hash))
+            continue
+        safe = np.array(got.safe, dtype=np.int64)
+        out.append(Decision.from_arrays(
+            d.t_ns, d.state, got.cell, got.value, got.winning, controller.inputs[safe], safe,
+            got.chosen, d.controller_version, d.scenario_hash,
+            chosen_input=controller.inputs[got.chosen] if got.chosen >= 0 else np.zeros(3)))
+    return out
+
+
+def check_decisions(run: RecordedRun, controllers: ControllerCache) -> Check:
+    """Recompute every recorded decision at its recorded state (see module docstring)."""
+    if not run.decisions:
+        return Check("decisions", Status.SKIP, "the log holds no decisions")
+    findings: list[Finding] = []
+    before = controllers.syntheses
+    for d, got, controller in _recomputed(run, controllers):
+        if isinstance(got, str) or controller is None:
+            findings.append(Finding(str(got), d.t_ns))
+            continue
         found = _mismatch(d, got, controller)
         if found is not None:
             findings.append(found)
-        if d.chosen_index >= 0:
-            previous = np.array(d.chosen_input)
     n = len(run.decisions)
     synth = controllers.syntheses - before
     metrics = {"decisions": n, "mismatches": len(findings), "syntheses": synth}

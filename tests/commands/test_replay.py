@@ -127,3 +127,21 @@ def test_bad_tolerance_exits_2(capsys: pytest.CaptureFixture[str]) -> None:
 def test_enforced_tolerance_fails_the_clean_log(capsys: pytest.CaptureFixture[str]) -> None:
     assert run_replay(str(LOG), "--no-stack", "--tolerance", "surge=0.001") == 1
     assert "[ FAIL] tracking:" in capsys.readouterr().out
+
+
+def test_rerun_flag_writes_the_recording_with_replayed_decisions(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from rerun.chunk import RrdReader
+
+    assert run_replay(str(LOG), "--no-stack", "--rerun", str(tmp_path)) == 0
+    rrd = tmp_path / f"{LOG.name}.replay.rrd"
+    assert f"rerun: {rrd}" in capsys.readouterr().out
+    store = RrdReader(rrd).store()
+    with BagReader(LOG) as reader:
+        n_decisions = sum(1 for _ in reader.records(["/hil/decision"]))
+    chunks = store.stream().filter(content="/world/replay/safe_inputs", is_static=False).to_chunks()
+    assert sum(c.num_rows for c in chunks) == n_decisions
+    # The current code reproduces this log: no decision is marked as different.
+    marked = store.stream().filter(content="/world/replay/differs", is_static=False).to_chunks()
+    assert sum(c.num_rows for c in marked) == 0
