@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import multiprocessing
 import re
 import shutil
 import sys
@@ -53,7 +54,7 @@ class SuiteRun:
 def suite() -> tuple[SuiteRun, ...]:
     """Return the runs of ``logs/``.
 
-    The paper scenario takes minutes per run; the coarse grid keeps CI short.
+    Mostly the coarse grid, which keeps CI short; two runs of the paper scenario.
     """
     from hil.adapters.sim import ObstacleMotion, ThrusterOutage
     from hil.runtime.loop import LoopConfig
@@ -94,6 +95,16 @@ def suite() -> tuple[SuiteRun, ...]:
                 thruster_outages=(ThrusterOutage(30.0, 30.3),),
             ),
             "pose lost for 1 s at 20 s (hold), thruster link down 30-30.3 s",
+        ),
+        SuiteRun(
+            "paper-default-seed0",
+            SimRunSpec("paper", 0, None, loop=loop),
+            "the paper scenario (160 x 120 x 60 cells), the default start",
+        ),
+        SuiteRun(
+            "paper-high-seed1",
+            SimRunSpec("paper", 1, (3.75, 1.5, math.radians(180.0)), loop=loop),
+            "the paper scenario, start high on the right, heading left",
         ),
     )
 
@@ -279,7 +290,9 @@ def run(args: argparse.Namespace) -> int:
             if args.workers > 1:
                 from concurrent.futures import ProcessPoolExecutor
 
-                with ProcessPoolExecutor(args.workers) as pool:
+                # Spawn: a forked child of a process that ran numba's threads may crash.
+                context = multiprocessing.get_context("spawn")
+                with ProcessPoolExecutor(args.workers, mp_context=context) as pool:
                     list(pool.map(_record_into, chosen, [staging] * len(chosen)))
             else:
                 for item in chosen:
