@@ -13,8 +13,8 @@ from __future__ import annotations
 import argparse
 import time
 
+from hil.runs.sim_run import SimRunSpec, run_in_sim
 from hil.runtime.loop import LoopConfig
-from hil.runtime.sim_run import SimRunSpec, run_in_sim
 
 
 def main(argv: list[str] | None = None) -> int:

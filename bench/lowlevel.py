@@ -31,15 +31,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hil.controllers.allocation import extended_matrix, force_limits
+from hil.model.environment import EnvironmentalLoad
+from hil.model.thrusters import ThrusterParams
+from hil.model.vessel import VesselParams, hydro_force
 from hil.sim.closed_loop import (
     AllocatorKind,
     ClosedLoopResult,
     LowLevelConfig,
     simulate_closed_loop,
 )
-from hil.sim.environment import EnvironmentalLoad
-from hil.sim.thrusters import ThrusterParams
-from hil.sim.vessel import VesselParams, hydro_force
 
 F = NDArray[np.float64]
 

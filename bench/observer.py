@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 from hil.controllers import observer_kernels as k
 from hil.controllers.observer import ObserverConfig
 from hil.controllers.observer_kernels import EkfArrays
-from hil.jit import njit
+from hil.core.jit import njit
 
 FloatArray = NDArray[np.float64]
 DT_NS = 10_000_000

@@ -32,7 +32,14 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from hil.adapters.samples import (
+from hil.bag import topics
+from hil.bag import typestore as ts
+from hil.bag.columns import COLUMN_TYPES
+from hil.bag.messages import Record, encode
+from hil.bag.reader import BagReader
+from hil.bag.recorder import Recorder, RecorderConfig, RunInfo
+from hil.core.records import Decision, ForceCommand, StateEstimate
+from hil.core.samples import (
     ImuSample,
     ObstacleLayout,
     PoseSample,
@@ -40,13 +47,6 @@ from hil.adapters.samples import (
     ThrusterCommand,
     VelocityReference,
 )
-from hil.replay import topics
-from hil.replay import typestore as ts
-from hil.replay.columns import COLUMN_TYPES
-from hil.replay.messages import Record, encode
-from hil.replay.reader import BagReader
-from hil.replay.recorder import Recorder, RecorderConfig, RunInfo
-from hil.replay.records import Decision, ForceCommand, StateEstimate
 
 
 def workload(seconds: float) -> list[Record]:

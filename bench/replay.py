@@ -29,9 +29,9 @@ from pathlib import Path
 
 def _record(scenario: str, seed: int, out: Path) -> Path:
     from hil.commands.record_suite import SuiteRun, record_run
+    from hil.runs.sim_run import SimRunSpec, default_start
     from hil.runtime.loop import LoopConfig
-    from hil.runtime.sim_run import SimRunSpec, default_start
-    from hil.scenario import load_scenario
+    from hil.scenarios.scenario import load_scenario
 
     x, y, psi = default_start(load_scenario(scenario))
     start = (x - 0.1 * (seed % 3), y + 0.25 * (seed % 2), psi)
@@ -56,7 +56,7 @@ def _rosbags_rate(paths: list[Path]) -> tuple[int, float]:
 
 def _hil_rate(paths: list[Path]) -> tuple[int, float]:
     from hil.adapters.log import read_log
-    from hil.replay.reader import describe
+    from hil.bag.reader import describe
 
     n = sum(describe(path).message_count for path in paths)
     start = time.perf_counter()

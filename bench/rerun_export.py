@@ -38,8 +38,8 @@ class Row:
 
 
 def _make_run(out: Path) -> None:
+    from hil.runs.sim_run import SimRunSpec, run_in_sim
     from hil.runtime.loop import LoopConfig
-    from hil.runtime.sim_run import SimRunSpec, run_in_sim
 
     loop = LoopConfig(resynthesis_period_s=None, dock_hold_s=RUN_S, max_duration_s=RUN_S)
     summary = run_in_sim(SimRunSpec(scenario="paper", seed=0, out_dir=out, loop=loop))
@@ -48,9 +48,9 @@ def _make_run(out: Path) -> None:
 
 def _hil_inspect(log: Path, out: Path, winning_set: bool) -> tuple[float, str]:
     """Convert as `hil inspect` does; return the wall time and the stage breakdown."""
-    from hil.replay.controller_view import controller_view, scenario_for
-    from hil.replay.rerun_export import write_rrd
-    from hil.replay.run_data import load_run
+    from hil.bag.run_data import load_run
+    from hil.views.controller_view import controller_view, scenario_for
+    from hil.views.rerun_export import write_rrd
 
     start = time.perf_counter()
     run = load_run(log)
@@ -100,7 +100,7 @@ def main(argv: list[str] | None = None) -> int:
         if log is None:
             log = root / "run"
             _make_run(log)
-        from hil.replay.reader import describe
+        from hil.bag.reader import describe
 
         info = describe(log)
         print(

@@ -4,7 +4,7 @@
 Needs only Python 3.11 and pip. Usage:
 
     python3 tools/dev.py run [hil run arguments]   # dock the simulated vessel
-    python3 tools/dev.py test [pytest arguments]   # tests, ruff, mypy
+    python3 tools/dev.py test [pytest arguments]   # ruff, mypy, import layers, tests
     python3 tools/dev.py bench [bench arguments]   # benchmarks under bench/
     python3 tools/dev.py hil ARGS...               # any hil command
 
@@ -82,6 +82,7 @@ def main(argv: list[str]) -> int:
     steps = [
         [py, "-m", "ruff", "check", "hil", "tests", "bench", "tools"],
         [py, "-m", "mypy"],
+        [str(_venv_bin("lint-imports"))],  # layers import downward only, no cycles
         [py, "-m", "pytest", "-n", "2", "--cov=hil", "--cov-report=term:skip-covered", *rest],
     ]
     for step in steps:

@@ -14,7 +14,7 @@ from hil.adapters.interfaces import (
     ThrusterSink,
     ThrusterSinkError,
 )
-from hil.adapters.samples import (
+from hil.core.samples import (
     Frame,
     ImuSample,
     ObstacleLayout,

@@ -12,8 +12,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from hil.adapters.samples import Frame, PoseSample, SampleError
-from hil.geometry import wrap_angle
+from hil.core.geometry import wrap_angle
+from hil.core.samples import Frame, PoseSample, SampleError
 
 
 def yaw_from_quaternion(x: float, y: float, z: float, w: float) -> float:

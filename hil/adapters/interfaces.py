@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import Protocol
 
-from hil.adapters.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
+from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
 
 
 class Clock(Protocol):

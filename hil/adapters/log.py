@@ -1,6 +1,6 @@
 """The recorded backend: a hil bag served through the adapters against a simulated clock.
 
-:func:`read_log` reads a recorded run (rosbag2 MCAP, see :mod:`hil.replay`) once,
+:func:`read_log` reads a recorded run (rosbag2 MCAP, see :mod:`hil.bag`) once,
 into numpy columns for the high-rate streams and records for the rest, and
 checks it on the way: non-finite messages are skipped with a warning,
 duplicated samples are dropped with a warning, out-of-order stamps are served
@@ -21,15 +21,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hil.adapters.interfaces import ThrusterSinkError
-from hil.adapters.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
-from hil.replay import topics
-from hil.replay.columns import Columns, to_columns
-from hil.replay.errors import BagError
-from hil.replay.messages import Record, to_record
-from hil.replay.reader import BagInfo, BagReader
-from hil.replay.records import Decision, Event
-from hil.replay.storage import RawMessage
-from hil.runtime.clock import SimClock
+from hil.bag import topics
+from hil.bag.columns import Columns, to_columns
+from hil.bag.errors import BagError
+from hil.bag.messages import Record, to_record
+from hil.bag.reader import BagInfo, BagReader
+from hil.bag.storage import RawMessage
+from hil.core.clock import SimClock
+from hil.core.records import Decision, Event
+from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -205,7 +205,7 @@ def read_log(path: str | Path) -> RecordedRun:
 
     Raises:
         BagError: The path is missing, not a bag, or not a hil run (see
-            :class:`hil.replay.reader.BagReader`).
+            :class:`hil.bag.reader.BagReader`).
         LogDataError: A stream cannot be used (poses in a non-arena frame).
     """
     warnings: list[str] = []

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from hil.adapters.samples import ObstacleLayout
+from hil.core.samples import ObstacleLayout
 
 
 class StaticObstacleSource:

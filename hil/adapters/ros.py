@@ -19,7 +19,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from hil.adapters.frames import ArenaTransform, quaternion_from_yaw, yaw_from_quaternion
-from hil.adapters.samples import (
+from hil.core.geometry import wrap_angle
+from hil.core.samples import (
     Frame,
     ImuSample,
     ObstacleLayout,
@@ -27,7 +28,6 @@ from hil.adapters.samples import (
     SampleError,
     ThrusterCommand,
 )
-from hil.geometry import wrap_angle
 
 NS_PER_S = 1_000_000_000
 

@@ -2,7 +2,7 @@
 
 A :class:`SimWorld` owns the plant (hull + thrusters, :mod:`hil.sim.plant`),
 the pose and IMU sensor models and the obstacle schedule. Its clock is a
-:class:`~hil.runtime.clock.SimClock`: when the loop sleeps, the world integrates
+:class:`~hil.core.clock.SimClock`: when the loop sleeps, the world integrates
 the plant over that span at the physics rate, with the last thruster command
 held, and queues the sensor samples that fall due. Everything is seeded, so a
 run repeats exactly.
@@ -17,18 +17,18 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hil.adapters.interfaces import ThrusterSinkError
-from hil.adapters.samples import (
+from hil.core.clock import SimClock
+from hil.core.samples import (
     ImuSample,
     ObstacleLayout,
     PoseSample,
     Rectangle,
     ThrusterCommand,
 )
-from hil.runtime.clock import SimClock
+from hil.model.thrusters import VOYAGER_THRUSTERS, ThrusterParams
+from hil.model.vessel import ENTERPRISE_I, EnvironmentalLoad, Integrator, Vessel, VesselParams
 from hil.sim.plant import N_PLANT, N_TRACE, P_ALPHA, P_ETA, TR_ETA, TR_NU, TR_NU_DOT, plant_advance
 from hil.sim.sensors import ImuSensorConfig, PoseSensorConfig, SimulatedImu, SimulatedPoseSensor
-from hil.sim.thrusters import VOYAGER_THRUSTERS, ThrusterParams
-from hil.sim.vessel import ENTERPRISE_I, EnvironmentalLoad, Integrator, Vessel, VesselParams
 
 FloatArray = NDArray[np.float64]
 NS_PER_S = 1_000_000_000

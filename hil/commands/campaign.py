@@ -37,17 +37,17 @@ def run(args: argparse.Namespace) -> int:
     from rich.table import Table
 
     from hil.controllers.symbolic import SymbolicError
-    from hil.runtime.assembly import LayoutSolver, layout_from_scenario
-    from hil.runtime.campaign import (
+    from hil.runs.campaign import (
         PAPER_TANK_MINUTES,
         CampaignStats,
         campaign_specs,
         draw_starts,
         run_campaign,
     )
+    from hil.runs.sim_run import SimRunSpec, synthesizer_for
+    from hil.runtime.assembly import LayoutSolver, layout_from_scenario
     from hil.runtime.loop import LoopConfig
-    from hil.runtime.sim_run import SimRunSpec, synthesizer_for
-    from hil.scenario import ScenarioError, load_scenario
+    from hil.scenarios.scenario import ScenarioError, load_scenario
 
     if args.n < 1 or args.workers < 1:
         print("hil campaign: -n and --workers must be at least 1", file=sys.stderr)

@@ -35,8 +35,8 @@ def _seconds(t_ns: int | None) -> str:
 
 
 def format_info(info: object) -> str:
-    """Return the readable summary of a :class:`hil.replay.reader.BagInfo`."""
-    from hil.replay.reader import BagInfo
+    """Return the readable summary of a :class:`hil.bag.reader.BagInfo`."""
+    from hil.bag.reader import BagInfo
 
     assert isinstance(info, BagInfo)
     kind = "rosbag2" if info.path.is_dir() else "file"
@@ -82,8 +82,8 @@ def run(args: argparse.Namespace) -> int:
         0; 1 with ``--check`` when a message does not decode; 2 when the log
         cannot be read at all.
     """
-    from hil.replay.errors import BagError
-    from hil.replay.reader import BagReader
+    from hil.bag.errors import BagError
+    from hil.bag.reader import BagReader
 
     skipped: list[str] = []
     try:

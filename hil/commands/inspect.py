@@ -80,8 +80,8 @@ def run(args: argparse.Namespace) -> int:
     Returns:
         0 on success; 2 when the log cannot be read or the output not written.
     """
-    from hil.replay.errors import ReplayError
-    from hil.replay.run_data import load_run
+    from hil.bag.errors import ReplayError
+    from hil.bag.run_data import load_run
 
     log = Path(args.log)
     output: Path | None = args.output
@@ -100,7 +100,7 @@ def run(args: argparse.Namespace) -> int:
             f"{len(data.skipped)} message(s) do not decode and are left out; first: "
             f"{data.skipped[0].reason}"
         )
-    from hil.replay.controller_view import controller_view, scenario_for
+    from hil.views.controller_view import controller_view, scenario_for
 
     scenario, note = scenario_for(data)
     if note:
@@ -110,7 +110,7 @@ def run(args: argparse.Namespace) -> int:
         view = controller_view(data, scenario, budget_s=args.synthesis_budget)
         if view.note:
             _note(view.note)
-    from hil.replay import rerun_export
+    from hil.views import rerun_export
 
     try:
         if output is not None:

@@ -48,8 +48,8 @@ def run(args: argparse.Namespace) -> int:
     Returns:
         0 on success; 2 when the log cannot be read or the picture not written.
     """
-    from hil.replay.errors import ReplayError
-    from hil.replay.run_data import load_run
+    from hil.bag.errors import ReplayError
+    from hil.bag.run_data import load_run
 
     log, output = Path(args.log), Path(args.output)
     if output.suffix.lower() != ".png":
@@ -67,8 +67,8 @@ def run(args: argparse.Namespace) -> int:
         data = load_run(log)
     except (ReplayError, ValueError) as err:
         return _error(str(err).splitlines()[0] if str(err) else type(err).__name__)
-    from hil.replay.controller_view import scenario_for
-    from hil.replay.plot import DEFAULT_DPI, HULL_EVERY_S, save_run_figure
+    from hil.views.controller_view import scenario_for
+    from hil.views.plot import DEFAULT_DPI, HULL_EVERY_S, save_run_figure
 
     scenario, note = scenario_for(data)
     if note:

@@ -2,7 +2,7 @@
 
 Runs a fixed list of simulated dockings in the coarse scenario (several starts,
 a moving obstacle, injected pose and thruster outages), each a pure function
-of its :class:`~hil.runtime.sim_run.SimRunSpec`, records each into a bag with
+of its :class:`~hil.runs.sim_run.SimRunSpec`, records each into a bag with
 one split and chunks closed at whole seconds of run time (so the bytes depend
 only on the run), and writes ``suite.json`` with every run's full specification
 for ``hil replay --resim``. The wall-clock synthesis times in the
@@ -27,10 +27,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # the CLI imports every command for --help: keep numba out of it
-    from hil.replay.messages import Record
-    from hil.replay.recorder import RecorderConfig, RunInfo
-    from hil.replay.records import Event
-    from hil.runtime.sim_run import SimRunSpec
+    from hil.bag.messages import Record
+    from hil.bag.recorder import RecorderConfig, RunInfo
+    from hil.core.records import Event
+    from hil.runs.sim_run import SimRunSpec
     from hil.runtime.trace import MemoryLog
 
 HELP = "regenerate the recorded regression suite (logs/) and show what changed"
@@ -57,8 +57,8 @@ def suite() -> tuple[SuiteRun, ...]:
     Mostly the coarse grid, which keeps CI short; two runs of the paper scenario.
     """
     from hil.adapters.sim import ObstacleMotion, ThrusterOutage
+    from hil.runs.sim_run import SimRunSpec
     from hil.runtime.loop import LoopConfig
-    from hil.runtime.sim_run import SimRunSpec
 
     loop = LoopConfig(max_duration_s=240.0)
     return (
@@ -134,10 +134,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def record_run(run: SuiteRun, out_dir: Path) -> Path:
     """Simulate `run` and write its bag to ``out_dir / run.name``; return the bag path."""
-    from hil.replay.recorder import RecorderConfig, RunInfo
-    from hil.runtime.sim_run import run_in_sim, scenario_hash
+    from hil.bag.recorder import RecorderConfig, RunInfo
+    from hil.runs.sim_run import run_in_sim, scenario_hash
     from hil.runtime.trace import MemoryLog
-    from hil.scenario import load_scenario
+    from hil.scenarios.scenario import load_scenario
 
     log = MemoryLog()
     run_in_sim(replace(run.spec, out_dir=None), log=log)
@@ -165,8 +165,8 @@ def memory_records(log: MemoryLog, *, wall_times: bool = True) -> list[Record]:
             event texts; False drops it, the only part of a simulated run that
             is not a function of its specification.
     """
-    from hil.adapters.samples import VelocityReference
-    from hil.replay.records import Event, ForceCommand, StateEstimate
+    from hil.core.records import Event, ForceCommand, StateEstimate
+    from hil.core.samples import VelocityReference
 
     records: list[Record] = [*log.poses, *log.imus]
     records += [
@@ -200,14 +200,14 @@ def write_bag(
 
     Args:
         path: New bag directory.
-        info: The run description (:class:`~hil.replay.recorder.RunInfo`).
-        records: Samples and records (:data:`hil.replay.messages.Record`), in time order.
-        config: Recorder configuration (:class:`~hil.replay.recorder.RecorderConfig`).
+        info: The run description (:class:`~hil.bag.recorder.RunInfo`).
+        records: Samples and records (:data:`hil.bag.messages.Record`), in time order.
+        config: Recorder configuration (:class:`~hil.bag.recorder.RecorderConfig`).
         flush_every_ns: Close a chunk at every multiple of this run time (ns), as
             the live recorder does every flush interval, so that a truncated
             copy keeps every stream up to the cut; None writes all at close.
     """
-    from hil.replay.recorder import Recorder
+    from hil.bag.recorder import Recorder
 
     with Recorder(path, info, config) as recorder:
         boundary = flush_every_ns
@@ -253,7 +253,7 @@ def describe_change(old: Path, new: Path) -> str:
 
 
 def _manifest(runs: Iterable[SuiteRun], existing: dict[str, object]) -> dict[str, object]:
-    from hil.runtime.sim_run import spec_to_json
+    from hil.runs.sim_run import spec_to_json
 
     entries = dict(existing)
     for run in runs:

@@ -1,7 +1,7 @@
 """`hil recover LOG [--dry-run] [--json]`: make a bag whose recorder was killed whole again.
 
 Rewrites each truncated split from its complete chunks and lists every split in
-``metadata.yaml`` (see :mod:`hil.replay.recover`), so that rosbags, ``ros2 bag``
+``metadata.yaml`` (see :mod:`hil.bag.recover`), so that rosbags, ``ros2 bag``
 and Foxglove read everything that reached the disk. With ``--dry-run`` it only
 says what it would do and writes nothing. Exit status 0 when done (or nothing to
 do), 2 when the log cannot be read or recovered.
@@ -27,8 +27,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Recover `args.log` in place (or report with --dry-run); return the exit status."""
-    from hil.replay.errors import ReplayError
-    from hil.replay.recover import inspect_recovery, recover
+    from hil.bag.errors import ReplayError
+    from hil.bag.recover import inspect_recovery, recover
 
     try:
         report = inspect_recovery(args.log) if args.dry_run else recover(args.log)

@@ -79,6 +79,27 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
+# Files a shell glob such as `logs/*` brings along that are not logs: skipped, not errors.
+_NOT_LOGS = {".md", ".json", ".txt", ".toml", ".rrd", ".png"}
+
+
+def _expand(paths: list[Path]) -> tuple[list[Path], list[Path]]:
+    """Return (logs to replay, files skipped): a folder of bags stands for its bags."""
+    logs: list[Path] = []
+    skipped: list[Path] = []
+    for path in paths:
+        if path.is_file() and path.suffix.lower() in _NOT_LOGS:
+            skipped.append(path)
+        elif path.is_dir() and not (path / "metadata.yaml").exists() and not any(
+            path.glob("*.mcap")
+        ) and not any(path.glob("*.db3")):
+            bags = sorted(d for d in path.iterdir() if (d / "metadata.yaml").is_file())
+            logs.extend(bags or [path])
+        else:
+            logs.append(path)
+    return logs, skipped
+
+
 def _one_line(err: BaseException) -> str:
     text = str(err).strip().splitlines()
     return text[0] if text else type(err).__name__
@@ -89,10 +110,10 @@ def _write_replay_rrd(
 ) -> str:
     """Write the recording with its replayed decisions to an .rrd; return what happened."""
     from hil.adapters.log import read_log
-    from hil.replay.errors import ReplayError
+    from hil.bag.errors import ReplayError
+    from hil.bag.run_data import load_run
     from hil.replay.replayer import replayed_decisions, resolve_scenario
-    from hil.replay.rerun_export import write_rrd
-    from hil.replay.run_data import load_run
+    from hil.views.rerun_export import write_rrd
 
     out = folder / f"{log.name}.replay.rrd"
     try:
@@ -128,7 +149,10 @@ def run(args: argparse.Namespace) -> int:
     caches = ScenarioCache()
     reports = []
     out = sys.stderr if args.json else sys.stdout
-    for path in args.logs:
+    logs, skipped = _expand(list(args.logs))
+    for path in skipped:
+        print(f"skipped {path}: not a log", file=out)
+    for path in logs:
         try:
             report = replay_log(path, options, caches)
         except Exception as err:  # the last guard: one line, never a traceback

@@ -12,6 +12,12 @@ import math
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from hil.runs.sim_run import LiveView
+    from hil.runtime.stack import RunLog
+    from hil.scenarios.scenario import Scenario
 
 HELP = "dock the vessel in simulation (or over ROS 2), record the run and summarize it"
 
@@ -45,15 +51,27 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="end with the summary as one JSON object on the last line")
 
 
+def _live_rerun(target: str) -> LiveView:
+    """Return the live view that streams to a spawned viewer ("spawn") or an .rrd path."""
+    from hil.views.rerun_export import LiveRerunLog  # rerun only when asked for
+
+    save = None if target == "spawn" else Path(target)
+
+    def live(scenario: Scenario, inner: RunLog) -> RunLog:
+        return LiveRerunLog.open(scenario, spawn=save is None, save=save, inner=inner)
+
+    return live
+
+
 def run(args: argparse.Namespace) -> int:
     """Run, print the summary; exit 0 when docked, 1 when not, 2 on bad input."""
     from rich.console import Console
 
+    from hil.bag.errors import ReplayError
     from hil.controllers.symbolic import SymbolicError
-    from hil.replay.errors import ReplayError
+    from hil.runs.sim_run import SimRunSpec, run_in_sim
     from hil.runtime.loop import LoopConfig
-    from hil.runtime.sim_run import SimRunSpec, run_in_sim
-    from hil.scenario import ScenarioError, load_scenario
+    from hil.scenarios.scenario import ScenarioError, load_scenario
 
     console = Console(stderr=args.json)
     try:
@@ -66,12 +84,11 @@ def run(args: argparse.Namespace) -> int:
         stamp = time.strftime("%Y%m%d-%H%M%S")
         out = args.out or Path("runs") / f"{name}-seed{args.seed}-{stamp}"
     spec = SimRunSpec(scenario=args.scenario, seed=args.seed, start=args.start, out_dir=out,
-                      loop=LoopConfig(max_duration_s=args.max_duration),
-                      rerun_spawn=args.rerun == "spawn",
-                      rerun_save=None if args.rerun in (None, "spawn") else Path(args.rerun))
+                      loop=LoopConfig(max_duration_s=args.max_duration))
+    live = None if args.rerun is None else _live_rerun(args.rerun)
     try:
         with console.status(f"docking in the {name} scenario (seed {args.seed})..."):
-            summary = run_in_sim(spec)
+            summary = run_in_sim(spec, live=live)
     except (ScenarioError, SymbolicError, ReplayError, ValueError) as err:
         print(f"hil run: {err}", file=sys.stderr)
         return 2

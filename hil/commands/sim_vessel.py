@@ -34,10 +34,10 @@ def run(args: argparse.Namespace) -> int:
     """Simulate until SIGINT/SIGTERM or the duration; 2 on bad input."""
     from hil.adapters.ros import RosBackendError, RosConfig
     from hil.adapters.sim import SimConfig, SimWorld
+    from hil.runs.ros_vessel import SimVesselNode
+    from hil.runs.sim_run import default_start
     from hil.runtime.assembly import layout_from_scenario
-    from hil.runtime.sim_run import default_start
-    from hil.scenario import ScenarioError, load_scenario
-    from hil.sim.ros_vessel import SimVesselNode
+    from hil.scenarios.scenario import ScenarioError, load_scenario
 
     try:
         scenario = load_scenario(args.scenario)

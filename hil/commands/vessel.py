@@ -28,10 +28,10 @@ def run(args: argparse.Namespace) -> int:
     from rich.console import Console
 
     from hil.adapters.ros import RosBackendError
-    from hil.config import ConfigError
-    from hil.replay.errors import ReplayError
-    from hil.runtime.vessel_run import VesselConfig, run_on_ros
-    from hil.scenario import ScenarioError
+    from hil.bag.errors import ReplayError
+    from hil.core.config import ConfigError
+    from hil.runs.vessel_run import VesselConfig, run_on_ros
+    from hil.scenarios.scenario import ScenarioError
 
     try:
         config = VesselConfig.load(args.config)

@@ -38,9 +38,9 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from hil.geometry import wrap_angle
-from hil.jit import njit
-from hil.sim.thrusters import (
+from hil.core.geometry import wrap_angle
+from hil.core.jit import njit
+from hil.model.thrusters import (
     T_K_TUNNEL,
     T_LX_PORT,
     T_LX_TUNNEL,
@@ -305,23 +305,6 @@ def xi_to_commands(
         lim = tp[T_UMAX_TUNNEL + j]
         u[j] = min(max(u[j], -lim), lim)
     return u, alpha
-
-
-@njit
-def throttle_for_slew(
-    u_set: FloatArray, alpha_set: FloatArray, alpha_now: FloatArray
-) -> FloatArray:
-    """Return azimuth commands scaled by max(cos(alpha_set - alpha_now), 0), shape (3,).
-
-    While a pod still turns toward its setpoint, full thrust would push in the wrong
-    direction; scaling by the cosine of the angle error delivers only the component
-    along the wanted direction (the tunnel, index 0, is unchanged).
-    """
-    out = u_set.copy()
-    for j in range(2):
-        c = math.cos(alpha_set[j] - alpha_now[j])
-        out[1 + j] = u_set[1 + j] * max(c, 0.0)
-    return out
 
 
 @njit

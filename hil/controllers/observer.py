@@ -15,7 +15,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hil.adapters.samples import Frame, ImuSample, PoseSample, SampleError
 from hil.controllers import observer_kernels as k
 from hil.controllers.errors import (
     ObserverConfigError,
@@ -23,6 +22,7 @@ from hil.controllers.errors import (
     ObserverNotInitializedError,
 )
 from hil.controllers.observer_kernels import EkfArrays, FloatArray
+from hil.core.samples import Frame, ImuSample, PoseSample, SampleError
 
 __all__ = [
     "Ekf",
@@ -78,6 +78,9 @@ class ObserverConfig:
         max_abs_accel_mps2: Accelerometer range (m/s^2; BNO055 default +-4 g), > 0.
         max_abs_yaw_rate_radps: Gyro range (rad/s; BNO055 +-2000 deg/s), > 0.
         max_delay_s: Oldest sample fused, before the filter time (s), > 0.
+        accel_hold_s: Longest span one accelerometer sample drives the prediction
+            (s), > 0; if the IMU falls silent, the velocity is then held constant
+            instead of being pushed by a stale reading.
         history_len: Ring slots for late samples (>= 2); one per distinct stamp,
             so 128 keeps over 0.6 s of 100 Hz pose and IMU at different stamps.
         reset_after_gated_poses: After this many gated poses in a row (0.1 s at
@@ -107,6 +110,7 @@ class ObserverConfig:
     max_abs_accel_mps2: float = 40.0
     max_abs_yaw_rate_radps: float = 35.0
     max_delay_s: float = 0.5
+    accel_hold_s: float = 0.1
     history_len: int = 128
     reset_after_gated_poses: int = 10
 
@@ -128,6 +132,7 @@ class ObserverConfig:
             "max_abs_accel_mps2",
             "max_abs_yaw_rate_radps",
             "max_delay_s",
+            "accel_hold_s",
         )
         for name in positive:
             value = getattr(self, name)
@@ -181,6 +186,7 @@ class ObserverConfig:
         p[k.P_RESTART_VAR_R] = P0[k.I_R]
         p[k.P_RESTART_VAR_BA] = P0[k.I_BAX]
         p[k.P_RESTART_VAR_BR] = P0[k.I_BR]
+        p[k.P_ACCEL_HOLD] = self.accel_hold_s
         return p
 
     def initial_covariance(self) -> FloatArray:

@@ -31,6 +31,7 @@ from hil.controllers.observer_math import (
     I_Y,
     N_PARAMS,
     N_STATE,
+    P_ACCEL_HOLD,
     P_GATE_GYRO,
     P_GATE_POSE,
     P_GATE_RESET,
@@ -82,8 +83,8 @@ from hil.controllers.observer_ring import (
     slot_index,
     store_prior,
 )
-from hil.geometry import wrap_angle
-from hil.jit import njit
+from hil.core.geometry import wrap_angle
+from hil.core.jit import njit
 
 __all__ = [
     "C_GYRO_GATED",
@@ -118,6 +119,7 @@ __all__ = [
     "N_COUNTERS",
     "N_PARAMS",
     "N_STATE",
+    "P_ACCEL_HOLD",
     "P_GATE_GYRO",
     "P_GATE_POSE",
     "P_GATE_RESET",

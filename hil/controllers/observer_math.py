@@ -46,8 +46,8 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from hil.geometry import wrap_angle
-from hil.jit import njit
+from hil.core.geometry import wrap_angle
+from hil.core.jit import njit
 
 FloatArray = NDArray[np.float64]
 
@@ -83,14 +83,44 @@ P_RESTART_VAR_UV = 15  # u, v variance after a restart, (m/s)^2
 P_RESTART_VAR_R = 16  # r variance after a restart, (rad/s)^2
 P_RESTART_VAR_BA = 17  # accelerometer-bias variance after a restart, (m/s^2)^2
 P_RESTART_VAR_BR = 18  # gyro-bias variance after a restart, (rad/s)^2
-N_PARAMS = 19
+P_ACCEL_HOLD = 19  # longest span an accelerometer sample drives the prediction, s
+N_PARAMS = 20
 
 
 @njit
 def ekf_predict(
     x: FloatArray, P: FloatArray, dt_s: float, accel_x: float, accel_y: float, params: FloatArray
 ) -> None:
-    """Propagate the state and covariance over `dt_s`, in place.
+    """Propagate over `dt_s` in place, holding the accelerometer sample for a bounded time.
+
+    An accelerometer sample drives the prediction for at most ``params[P_ACCEL_HOLD]``
+    seconds: if the IMU falls silent, a stale reading would otherwise push the
+    velocity for as long as the gap lasts. Beyond the hold the body velocity is
+    predicted constant (the specific force nu_dot = 0 implies, bias included).
+
+    Args:
+        x: State (9,), overwritten with the prior at t + dt.
+        P: Covariance (9, 9), overwritten.
+        dt_s: Step (s, >= 0).
+        accel_x: Measured specific force along body x at the step's start (m/s^2).
+        accel_y: Measured specific force along body y (m/s^2).
+        params: Parameter vector (N_PARAMS,); uses ``P_Q_*`` and ``P_ACCEL_HOLD``.
+    """
+    hold = params[P_ACCEL_HOLD]
+    if hold <= 0.0 or dt_s <= hold:
+        _predict_step(x, P, dt_s, accel_x, accel_y, params)
+        return
+    _predict_step(x, P, hold, accel_x, accel_y, params)
+    # f = nu_dot + (-r v, r u) + b with nu_dot = 0.
+    r = x[I_R]
+    _predict_step(x, P, dt_s - hold, x[I_BAX] - r * x[I_V], x[I_BAY] + r * x[I_U], params)
+
+
+@njit
+def _predict_step(
+    x: FloatArray, P: FloatArray, dt_s: float, accel_x: float, accel_y: float, params: FloatArray
+) -> None:
+    """Propagate the state and covariance over `dt_s` with the input held, in place.
 
     Args:
         x: State (9,), overwritten with the prior at t + dt.

@@ -34,7 +34,7 @@ from hil.controllers.observer_math import (
     ekf_predict,
     ekf_update_yaw_rate,
 )
-from hil.jit import njit
+from hil.core.jit import njit
 
 IntArray = NDArray[np.int64]
 

@@ -40,16 +40,13 @@ from numpy.typing import NDArray
 
 from hil.adapters.interfaces import ThrusterSinkError
 from hil.adapters.log import LogConfig, LogWorld, RecordedRun, Stream, read_log
-from hil.adapters.samples import ObstacleLayout, Rectangle, ThrusterCommand
+from hil.bag.errors import ReplayError
 from hil.controllers.symbolic import NoWinningSetError, SymbolicError, Synthesizer
-from hil.geometry import wrap_angles
-from hil.replay.errors import ReplayError
-from hil.replay.records import Decision
+from hil.core.geometry import wrap_angles
+from hil.core.records import Decision
+from hil.core.samples import ObstacleLayout, Rectangle, ThrusterCommand
 from hil.replay.regression import Check, Finding, LogReport, Status, time_s
-from hil.runtime.assembly import LayoutSolver, SymbolicAdapter, select_index
-from hil.runtime.loop import LoopConfig, Mode, World
-from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer
-from hil.runtime.sim_run import (
+from hil.runs.sim_run import (
     SimRunSpec,
     build_runtime,
     run_in_sim,
@@ -57,10 +54,13 @@ from hil.runtime.sim_run import (
     spec_from_json,
     synthesizer_for,
 )
+from hil.runs.summary import PAPER_TRACKING_ERROR
+from hil.runtime.assembly import LayoutSolver, SymbolicAdapter, select_index
+from hil.runtime.loop import LoopConfig, Mode, World
+from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer
 from hil.runtime.stack import SymbolicController
-from hil.runtime.summary import PAPER_TRACKING_ERROR
 from hil.runtime.trace import MemoryLog
-from hil.scenario import Scenario, ScenarioError, load_scenario
+from hil.scenarios.scenario import Scenario, ScenarioError, load_scenario
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]

@@ -1,15 +1,16 @@
-"""The HIL runtime: clocks, the control loop, re-synthesis, runs and their summaries.
+"""The runtime (layer 7): the control loop, the stack's protocols and its assembly.
 
-`hil.runtime.sim_run` (a docking run in simulation), `hil.runtime.vessel_run`
-(the stack on the vessel over ROS 2) and `hil.runtime.campaign` (Monte Carlo)
-build on the loop; import them directly.
+:mod:`hil.runtime.loop` runs observer, symbolic decisions, low level and recording at a
+fixed rate against a :class:`~hil.runtime.loop.World` of adapters;
+:mod:`hil.runtime.stack` declares the components it calls, :mod:`hil.runtime.assembly`
+wires the real ones, :mod:`hil.runtime.resynthesis` re-synthesizes beside the loop.
+May import adapters, bag, sim, controllers, model, scenarios and core; the runs build
+on it.
 """
 
-from hil.runtime.clock import SimClock, WallClock
 from hil.runtime.events import EventCode
 from hil.runtime.loop import LoopConfig, Mode, RunStats, Runtime, World
 from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer, SynthesisResult
-from hil.runtime.summary import RunSummary, TrackingError
 
 __all__ = [
     "EventCode",
@@ -18,11 +19,7 @@ __all__ = [
     "ResynthesisMode",
     "Resynthesizer",
     "RunStats",
-    "RunSummary",
     "Runtime",
-    "SimClock",
     "SynthesisResult",
-    "TrackingError",
-    "WallClock",
     "World",
 ]

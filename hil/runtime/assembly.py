@@ -12,13 +12,13 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from hil.adapters.samples import ImuSample, ObstacleLayout, PoseSample, Rectangle, ThrusterCommand
 from hil.controllers.allocation import MinimumMagnitudeAzimuthAllocator
 from hil.controllers.observer import Ekf, ObserverStatus
 from hil.controllers.pid import VelocityPid
 from hil.controllers.symbolic import Controller, NoWinningSetError, Synthesizer, cost
+from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, Rectangle, ThrusterCommand
 from hil.runtime.stack import LowLevelOutput
-from hil.scenario import Obstacle, Rect, Scenario
+from hil.scenarios.scenario import Obstacle, Rect, Scenario
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]

@@ -25,8 +25,8 @@ from hil.adapters.interfaces import (
     ThrusterSink,
     ThrusterSinkError,
 )
-from hil.adapters.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
-from hil.replay.records import Decision, EventLevel
+from hil.core.records import Decision, EventLevel
+from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
 from hil.runtime.events import EventCode
 from hil.runtime.resynthesis import Resynthesizer
 from hil.runtime.stack import LowLevel, Observer, RunLog, SymbolicController

@@ -17,7 +17,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Generic, TypeVar
 
-from hil.adapters.samples import ObstacleLayout
+from hil.core.samples import ObstacleLayout
 
 ControllerT = TypeVar("ControllerT")
 

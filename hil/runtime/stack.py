@@ -14,8 +14,8 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from hil.adapters.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
-from hil.replay.records import Decision, EventLevel
+from hil.core.records import Decision, EventLevel
+from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]

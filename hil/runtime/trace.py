@@ -12,8 +12,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from hil.adapters.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
-from hil.replay.records import Decision, EventLevel
+from hil.core.records import Decision, EventLevel
+from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
 
 FloatArray = NDArray[np.float64]
 

@@ -1,7 +1,7 @@
 """The whole low level in one compiled loop: sensors -> EKF -> PID -> allocation -> vessel.
 
 One ``@njit`` loop at the physics rate (100 Hz by default) built only from the kernels
-the Python-level classes use (:mod:`hil.sim.vessel`, :mod:`hil.sim.thrusters`,
+the Python-level classes use (:mod:`hil.model.vessel`, :mod:`hil.model.thrusters`,
 :mod:`hil.controllers.allocation`, :mod:`hil.controllers.pid`, and the observer's
 kernels), so a 3-minute run takes a fraction of a second and there is one copy of the
 math. Per physics step k (t = k dt):
@@ -32,14 +32,28 @@ from hil.controllers.allocation import (
     extended_matrix,
     mma_allocate,
     pseudo_inverse_allocate,
-    throttle_for_slew,
 )
 from hil.controllers.observer import ObserverConfig
 from hil.controllers.observer_kernels import EkfArrays, obs_imu, obs_init, obs_pose
 from hil.controllers.pid import DEFAULT_GAINS, N_PID_STATE, PidGains, pid_command, pid_integrate
-from hil.jit import njit
-from hil.sim.environment import EnvironmentalLoad
-from hil.sim.errors import ClosedLoopConfigError, StateShapeError
+from hil.core.jit import njit
+from hil.model.environment import EnvironmentalLoad
+from hil.model.errors import StateShapeError
+from hil.model.thrusters import (
+    VOYAGER_THRUSTERS,
+    ThrusterParams,
+    throttle_for_slew,
+    thruster_force,
+    thruster_update,
+)
+from hil.model.vessel import (
+    ENTERPRISE_I,
+    Integrator,
+    VesselParams,
+    acceleration,
+    integrate_step,
+)
+from hil.sim.errors import ClosedLoopConfigError
 from hil.sim.sensors import (
     ImuSensorConfig,
     PoseSensorConfig,
@@ -47,14 +61,6 @@ from hil.sim.sensors import (
     imu_reading,
     pose_noise_series,
     pose_sensor_step,
-)
-from hil.sim.thrusters import VOYAGER_THRUSTERS, ThrusterParams, thruster_force, thruster_update
-from hil.sim.vessel import (
-    ENTERPRISE_I,
-    Integrator,
-    VesselParams,
-    acceleration,
-    integrate_step,
 )
 
 FloatArray = NDArray[np.float64]

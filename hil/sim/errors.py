@@ -1,31 +1,7 @@
-"""Errors raised by the vessel simulator (model, thrusters, environment, closed loop)."""
+"""Exceptions of the simulated world (the vessel model's own live in :mod:`hil.model.errors`)."""
 
-from __future__ import annotations
-
-
-class SimError(Exception):
-    """Base class of every simulator error."""
-
-
-class VesselConfigError(SimError, ValueError):
-    """A vessel or thruster configuration that cannot describe a physical vessel."""
-
-
-class EnvironmentConfigError(SimError, ValueError):
-    """An environmental-load configuration that is invalid (negative std, bad period)."""
-
-
-class NonFiniteForceError(SimError, ValueError):
-    """A force or moment given to the model is NaN or infinite."""
-
-
-class NonFiniteCommandError(SimError, ValueError):
-    """A thruster command or azimuth angle is NaN or infinite."""
-
-
-class StateShapeError(SimError, ValueError):
-    """A state or series has the wrong shape or non-finite entries."""
+from hil.model.errors import SimError
 
 
 class ClosedLoopConfigError(SimError, ValueError):
-    """Inputs to the closed-loop simulation are inconsistent (shapes, rates, lengths)."""
+    """Invalid settings of the compiled closed loop."""

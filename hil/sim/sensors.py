@@ -36,10 +36,10 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from hil.adapters.samples import Frame, ImuSample, PoseSample
-from hil.geometry import wrap_angle
-from hil.jit import njit
-from hil.sim.errors import SimError, StateShapeError
+from hil.core.geometry import wrap_angle
+from hil.core.jit import njit
+from hil.core.samples import Frame, ImuSample, PoseSample
+from hil.model.errors import SimError, StateShapeError
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]

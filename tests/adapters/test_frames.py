@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from hil.adapters.frames import ArenaTransform, quaternion_from_yaw, yaw_from_quaternion
-from hil.adapters.samples import Frame, PoseSample, SampleError
+from hil.core.samples import Frame, PoseSample, SampleError
 
 
 def test_identity_transform_keeps_the_pose() -> None:

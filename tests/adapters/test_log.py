@@ -17,20 +17,20 @@ from hil.adapters.log import (
     LogWorld,
     read_log,
 )
-from hil.adapters.samples import (
+from hil.bag import topics
+from hil.bag import typestore as ts
+from hil.bag.errors import BagNotFoundError, NotAHilRunError
+from hil.bag.messages import Record, encode
+from hil.bag.recorder import RecorderConfig, RunInfo
+from hil.commands.record_suite import write_bag
+from hil.core.records import Event, EventLevel
+from hil.core.samples import (
     ImuSample,
     ObstacleLayout,
     PoseSample,
     Rectangle,
     ThrusterCommand,
 )
-from hil.commands.record_suite import write_bag
-from hil.replay import topics
-from hil.replay import typestore as ts
-from hil.replay.errors import BagNotFoundError, NotAHilRunError
-from hil.replay.messages import Record, encode
-from hil.replay.recorder import RecorderConfig, RunInfo
-from hil.replay.records import Event, EventLevel
 
 MS = 1_000_000
 CONFIG = RecorderConfig(split_s=1e9, flush_s=1e9, threaded=False)
@@ -112,7 +112,7 @@ def _copy_raw(
     `edit` maps the index of a pose message to a new payload (None drops it);
     `extra` repeats the pose with that index (a duplicate).
     """
-    from hil.replay.reader import BagReader
+    from hil.bag.reader import BagReader
 
     out = dst / "edited.mcap"
     with BagReader(src) as reader, out.open("wb") as stream:

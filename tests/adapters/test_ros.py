@@ -24,7 +24,7 @@ from hil.adapters.ros import (
     thruster_command_from_components,
     thruster_wrench_components,
 )
-from hil.adapters.samples import (
+from hil.core.samples import (
     Frame,
     ImuSample,
     ObstacleLayout,

@@ -9,9 +9,9 @@ from pathlib import Path
 
 import pytest
 
-from hil.adapters.samples import ImuSample
+from hil.bag.recorder import Recorder, RunInfo
 from hil.commands import info
-from hil.replay.recorder import Recorder, RunInfo
+from hil.core.samples import ImuSample
 
 FOREIGN_BAGS = Path(__file__).resolve().parents[2].parent / "shared" / "foreign_bags"
 

@@ -10,10 +10,10 @@ from pathlib import Path
 import pytest
 from rerun.chunk import RrdReader
 
+from hil.bag.reader import describe
 from hil.commands import inspect
-from hil.replay.reader import describe
+from hil.runs.sim_run import SimRunSpec, run_in_sim
 from hil.runtime.loop import LoopConfig
-from hil.runtime.sim_run import SimRunSpec, run_in_sim
 
 FOREIGN = Path("/work/shared/foreign_bags")
 

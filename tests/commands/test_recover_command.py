@@ -10,9 +10,9 @@ from pathlib import Path
 import pytest
 from rosbags.highlevel import AnyReader
 
-from hil.adapters.samples import ImuSample
+from hil.bag.recorder import Recorder, RecorderConfig
 from hil.commands import recover as command
-from hil.replay.recorder import Recorder, RecorderConfig
+from hil.core.samples import ImuSample
 
 
 def run_recover(*argv: str) -> int:

@@ -12,11 +12,11 @@ from xml.etree import ElementTree as ET
 
 import pytest
 
+from hil.bag.reader import BagReader
+from hil.bag.recorder import RecorderConfig, RunInfo
 from hil.commands import replay
 from hil.commands.record_suite import write_bag
-from hil.replay.reader import BagReader
-from hil.replay.recorder import RecorderConfig, RunInfo
-from hil.replay.records import Decision
+from hil.core.records import Decision
 
 ROOT = Path(__file__).resolve().parents[2]
 LOG = ROOT / "logs" / "coarse-high-seed2"
@@ -145,3 +145,17 @@ def test_rerun_flag_writes_the_recording_with_replayed_decisions(
     # The current code reproduces this log: no decision is marked as different.
     marked = store.stream().filter(content="/world/replay/differs", is_static=False).to_chunks()
     assert sum(c.num_rows for c in marked) == 0
+
+
+def test_shell_glob_over_logs_replays_the_bags_and_skips_the_rest(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    entries = sorted((ROOT / "logs").iterdir())
+    assert run_replay(*(str(p) for p in entries), "--no-stack") == 0
+    out = capsys.readouterr().out
+    assert f"skipped {ROOT / 'logs' / 'suite.json'}: not a log" in out
+    bags = [p for p in entries if (p / "metadata.yaml").is_file()]
+    assert out.strip().splitlines()[-1] == f"{len(bags)} log(s): no regression"
+    # The folder itself stands for the bags in it.
+    assert run_replay(str(ROOT / "logs"), "--no-stack") == 0
+    assert capsys.readouterr().out.strip().splitlines()[-1] == f"{len(bags)} log(s): no regression"

@@ -22,10 +22,9 @@ from hil.controllers.allocation import (
     matvec,
     null_space_gradient,
     project_feasible,
-    throttle_for_slew,
     xi_to_commands,
 )
-from hil.sim.thrusters import VOYAGER_THRUSTERS, thruster_force
+from hil.model.thrusters import VOYAGER_THRUSTERS, throttle_for_slew, thruster_force
 
 F = NDArray[np.float64]
 TP = VOYAGER_THRUSTERS.as_array()

@@ -10,7 +10,6 @@ import pytest
 import scipy.linalg as sl  # type: ignore[import-untyped]
 from scipy import stats
 
-from hil.adapters.samples import Frame, ImuSample, PoseSample
 from hil.controllers import observer_kernels as k
 from hil.controllers.errors import (
     ObserverConfigError,
@@ -19,6 +18,7 @@ from hil.controllers.errors import (
 )
 from hil.controllers.observer import Ekf, ObserverConfig, ObserverStatus
 from hil.controllers.observer_kernels import EkfArrays, FloatArray
+from hil.core.samples import Frame, ImuSample, PoseSample
 
 DT = 0.01
 DT_NS = 10_000_000
@@ -619,3 +619,21 @@ def test_prediction_to_a_later_time_changes_nothing() -> None:
         ekf.predicted(0)
     with pytest.raises(ObserverNotInitializedError):
         Ekf().predicted(0)
+
+
+def test_a_stale_accelerometer_sample_drives_the_prediction_for_the_hold_only() -> None:
+    from hil.controllers.observer_math import I_U, N_STATE, ekf_predict
+
+    config = ObserverConfig(accel_hold_s=0.1)
+    params = config.params()
+    x = np.zeros(N_STATE)
+    P = np.eye(N_STATE) * 1e-4
+    # The IMU's last sample says 0.5 m/s^2 forward, then nothing for a whole second.
+    ekf_predict(x, P, 1.0, 0.5, 0.0, params)
+    assert x[I_U] == pytest.approx(0.05)  # 0.1 s of 0.5 m/s^2, then constant velocity
+    # Within the hold, the sample drives the whole step.
+    x2 = np.zeros(N_STATE)
+    ekf_predict(x2, np.eye(N_STATE) * 1e-4, 0.01, 0.5, 0.0, params)
+    assert x2[I_U] == pytest.approx(0.005)
+    with pytest.raises(ObserverConfigError, match="accel_hold_s"):
+        ObserverConfig(accel_hold_s=0.0)

@@ -20,8 +20,8 @@ from hil.controllers.pid import (
     pid_command,
     pid_integrate,
 )
+from hil.model.vessel import ENTERPRISE_I, hydro_force
 from hil.sim.closed_loop import LowLevelConfig, simulate_closed_loop
-from hil.sim.vessel import ENTERPRISE_I, hydro_force
 
 F = NDArray[np.float64]
 M = ENTERPRISE_I.mass_matrix()

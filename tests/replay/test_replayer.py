@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 
 from hil.adapters.log import RecordedRun, Stream, read_log
+from hil.bag.messages import Record
+from hil.bag.reader import BagInfo, BagReader
+from hil.bag.recorder import RecorderConfig, RunInfo
 from hil.commands.record_suite import write_bag
-from hil.replay.messages import Record
-from hil.replay.reader import BagInfo, BagReader
-from hil.replay.recorder import RecorderConfig, RunInfo
-from hil.replay.records import Decision, StateEstimate
+from hil.core.records import Decision, StateEstimate
 from hil.replay.regression import LogReport, Status
 from hil.replay.replayer import (
     ReplayOptions,
@@ -29,10 +29,10 @@ from hil.replay.replayer import (
     replay_log,
     resolve_scenario,
 )
+from hil.runs.sim_run import spec_from_json, spec_to_json
 from hil.runtime.assembly import layout_from_scenario
-from hil.runtime.sim_run import spec_from_json, spec_to_json
-from hil.scenario import TrackingMargin, load_scenario
-from tests.replay.replay_streams import foreign_bag_paths, tree_digest
+from hil.scenarios.scenario import TrackingMargin, load_scenario
+from tests.bag.bag_streams import foreign_bag_paths, tree_digest
 
 LOGS = Path(__file__).resolve().parents[2] / "logs"
 SUITE_LOGS = sorted(p for p in LOGS.iterdir() if (p / "metadata.yaml").is_file())
@@ -239,13 +239,16 @@ def test_spec_round_trips_through_the_manifest_form() -> None:
         spec_from_json({"seed": 1})
 
 
-def test_resim_with_the_suite_spec_reproduces_the_recording_exactly(
+def test_resim_with_the_suite_spec_reproduces_the_recording(
     caches: ScenarioCache,
 ) -> None:
     resim = _replay(REFERENCE, caches, resim=True, stack=False).check("resim")
     assert resim.metrics["start_from"] == "suite.json entry"
     assert resim.status is Status.PASS, resim.findings
-    assert resim.metrics["max_deviation_m"] == 0.0
+    # Not bit-exact across machines: numba compiles for the host CPU (FMA contraction,
+    # vector width), measured at 1.5e-10 m between two x86_64 CPUs over a whole run.
+    # 1 um is four orders of magnitude above that noise and below any cell (cm).
+    assert resim.metrics["max_deviation_m"] < 1e-6
 
 
 def test_resim_from_the_first_pose_docks_and_drift_only_warns(

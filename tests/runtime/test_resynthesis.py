@@ -2,7 +2,7 @@ import threading
 
 import pytest
 
-from hil.adapters.samples import ObstacleLayout, Rectangle
+from hil.core.samples import ObstacleLayout, Rectangle
 from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer
 
 

@@ -9,16 +9,19 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
-from hil.controllers.allocation import MinimumMagnitudeAzimuthAllocator, throttle_for_slew
+from hil.controllers.allocation import MinimumMagnitudeAzimuthAllocator
 from hil.controllers.observer import Ekf
 from hil.controllers.pid import PidOutput, VelocityPid
+from hil.model.errors import StateShapeError
+from hil.model.thrusters import Thrusters, ThrusterState, throttle_for_slew
+from hil.model.vessel import EnvironmentalLoad, Vessel, VesselState
 from hil.sim.closed_loop import (
     AllocatorKind,
     ClosedLoopResult,
     LowLevelConfig,
     simulate_closed_loop,
 )
-from hil.sim.errors import ClosedLoopConfigError, StateShapeError
+from hil.sim.errors import ClosedLoopConfigError
 from hil.sim.sensors import (
     ImuSensorConfig,
     imu_noise_series,
@@ -26,8 +29,6 @@ from hil.sim.sensors import (
     pose_noise_series,
     pose_sensor_step,
 )
-from hil.sim.thrusters import Thrusters, ThrusterState
-from hil.sim.vessel import EnvironmentalLoad, Vessel, VesselState
 
 F = NDArray[np.float64]
 

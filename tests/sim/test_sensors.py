@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from hil.adapters.samples import Frame, SampleError
-from hil.sim.errors import StateShapeError
+from hil.core.samples import Frame, SampleError
+from hil.model.errors import StateShapeError
 from hil.sim.sensors import (
     ImuSensorConfig,
     PoseSensorConfig,

@@ -18,8 +18,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hil.controllers.symbolic.errors import GridError
-from hil.geometry import wrap_angle
-from hil.scenario import Polygon, Rect, Scenario, Shape
+from hil.core.geometry import wrap_angle
+from hil.scenarios.scenario import Polygon, Rect, Scenario, Shape
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]

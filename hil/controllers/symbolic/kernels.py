@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from hil.jit import njit
+from hil.core.jit import njit
 
 U64Array = NDArray[np.uint64]
 I32Array = NDArray[np.int32]

@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hil.controllers.symbolic.grid import Grid, obstacle_mask, target_mask
-from hil.scenario import Scenario, Shape
+from hil.scenarios.scenario import Scenario, Shape
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]

@@ -25,7 +25,7 @@ import numpy as np
 from numba import prange
 from numpy.typing import NDArray
 
-from hil.jit import njit, njit_parallel
+from hil.core.jit import njit, njit_parallel
 
 U64Array = NDArray[np.uint64]
 I32Array = NDArray[np.int32]

@@ -17,7 +17,7 @@ import pytest
 from numpy.typing import NDArray
 
 from hil.controllers.symbolic import Controller, SymbolicProblem, synthesize
-from hil.scenario import Rect, Scenario, TrackingMargin
+from hil.scenarios.scenario import Rect, Scenario, TrackingMargin
 
 FloatArray = NDArray[np.float64]
 

@@ -23,7 +23,7 @@ from hil.controllers.symbolic import (
     tables_for,
 )
 from hil.controllers.symbolic.reference import dense_fixed_point
-from hil.scenario import Rect, Scenario
+from hil.scenarios.scenario import Rect, Scenario
 
 BoolArray = NDArray[np.bool_]
 

@@ -1,0 +1,72 @@
+"""The one place that decides how numerical kernels are compiled.
+
+Every kernel in the package is decorated with :func:`njit` from here, so the
+compilation options (on-disk cache for a fast second start, no fastmath so that
+IEEE semantics and therefore the soundness arguments hold) are set once.
+
+numba's cache checks only the source file of the function it compiled, not the
+files of the kernels it calls: after an edit to a callee, a cached caller would
+silently run the old code. So the cache lives in a folder named by a hash of
+every source file of the package: any edit starts a fresh cache, and the folders
+of older sources are pruned.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, TypeVar, cast
+
+import numba
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+_PACKAGE = Path(__file__).resolve().parent.parent  # the whole hil package
+_KEEP = 8  # cache folders of older sources kept (switching branches, parallel checkouts)
+
+
+def _sources_digest() -> str:
+    digest = hashlib.sha256(numba.__version__.encode())
+    for path in sorted(_PACKAGE.rglob("*.py")):
+        digest.update(path.relative_to(_PACKAGE).as_posix().encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
+def cache_root() -> Path:
+    """Return the folder holding the per-source cache folders.
+
+    `HIL_NUMBA_CACHE_DIR`, else numba's own `NUMBA_CACHE_DIR`, else
+    `~/.cache/hil/numba`.
+    """
+    configured = os.environ.get("HIL_NUMBA_CACHE_DIR") or os.environ.get("NUMBA_CACHE_DIR")
+    return Path(configured) if configured else Path.home() / ".cache" / "hil" / "numba"
+
+
+def _configure_cache() -> Path:
+    folder = cache_root() / _sources_digest()
+    folder.mkdir(parents=True, exist_ok=True)
+    os.utime(folder)  # mark as recently used
+    siblings = sorted((p for p in folder.parent.iterdir() if p.is_dir() and p != folder),
+                      key=lambda p: p.stat().st_mtime, reverse=True)
+    for old in siblings[_KEEP:]:
+        shutil.rmtree(old, ignore_errors=True)
+    numba.config.CACHE_DIR = str(folder)  # type: ignore[attr-defined]
+    return folder
+
+
+CACHE_DIR = _configure_cache()
+"""Where compiled kernels of this exact source tree are cached."""
+
+
+def njit(fn: F) -> F:
+    """Compile `fn` with numba in nopython mode, cached on disk, keeping its type."""
+    return cast(F, numba.njit(cache=True, nogil=True)(fn))
+
+
+def njit_parallel(fn: F) -> F:
+    """Like :func:`njit` but allows `numba.prange` loops over threads."""
+    return cast(F, numba.njit(cache=True, nogil=True, parallel=True)(fn))

@@ -1,0 +1,264 @@
+"""Records the runtime logs beside the adapter samples: decisions, estimates, forces, events.
+
+The sensor and actuator samples live in :mod:`hil.core.samples`; the records
+here are what only the stack produces. They are frozen and made of tuples, so two
+records compare equal field by field (a round trip through a bag is checked with
+``==``). Times are integer nanoseconds on the run clock; the arena frame is the
+paper's planar frame (x, y in metres, psi in radians).
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+FloatArray = NDArray[np.float64]
+
+
+class RecordValueError(ValueError):
+    """A record holds a value that must not be written (NaN, wrong shape, bad time)."""
+
+
+Vec3 = tuple[float, float, float]
+
+
+def _check_time(name: str, t_ns: int) -> None:
+    if isinstance(t_ns, bool) or not isinstance(t_ns, int | np.integer) or t_ns < 0:
+        raise RecordValueError(f"{name}: time must be a non-negative integer (ns), got {t_ns!r}")
+
+
+def _check_finite(name: str, values: Iterable[float]) -> None:
+    values = tuple(values)
+    if not all(math.isfinite(v) for v in values):
+        raise RecordValueError(f"{name} has non-finite values: {values!r}")
+
+
+def _vec3(name: str, value: ArrayLike) -> Vec3:
+    arr = np.asarray(value, dtype=np.float64)
+    if arr.shape != (3,):
+        raise RecordValueError(f"{name} must have shape (3,), got {arr.shape!r}")
+    return (float(arr[0]), float(arr[1]), float(arr[2]))
+
+
+@dataclass(frozen=True, slots=True)
+class StateEstimate:
+    """The observer's state estimate (nav_msgs/Odometry on the lab's odom topic).
+
+    Attributes:
+        t_ns: Time of the estimate (ns).
+        x_m: Arena x (m).
+        y_m: Arena y (m).
+        yaw_rad: Heading psi (rad).
+        surge_mps: Body surge velocity u (m/s).
+        sway_mps: Body sway velocity v (m/s).
+        yaw_rate_radps: Yaw rate r (rad/s).
+    """
+
+    t_ns: int
+    x_m: float
+    y_m: float
+    yaw_rad: float
+    surge_mps: float
+    sway_mps: float
+    yaw_rate_radps: float
+
+    def __post_init__(self) -> None:
+        _check_time("state estimate", self.t_ns)
+        _check_finite(
+            "state estimate",
+            (self.x_m, self.y_m, self.yaw_rad, self.surge_mps, self.sway_mps, self.yaw_rate_radps),
+        )
+
+    def eta(self) -> FloatArray:
+        """Return the pose (x, y, psi), shape (3,)."""
+        return np.array([self.x_m, self.y_m, self.yaw_rad])
+
+    def nu(self) -> FloatArray:
+        """Return the body velocity (u, v, r), shape (3,)."""
+        return np.array([self.surge_mps, self.sway_mps, self.yaw_rate_radps])
+
+
+@dataclass(frozen=True, slots=True)
+class ForceCommand:
+    """The generalized force tau = (X, Y, N) asked of the allocation (body frame).
+
+    Attributes:
+        t_ns: Time the command was issued (ns).
+        surge_n: Surge force X (N).
+        sway_n: Sway force Y (N).
+        yaw_nm: Yaw moment N (N m).
+    """
+
+    t_ns: int
+    surge_n: float
+    sway_n: float
+    yaw_nm: float
+
+    def __post_init__(self) -> None:
+        _check_time("force command", self.t_ns)
+        _check_finite("force command", (self.surge_n, self.sway_n, self.yaw_nm))
+
+    def as_array(self) -> FloatArray:
+        """Return (X, Y, N), shape (3,)."""
+        return np.array([self.surge_n, self.sway_n, self.yaw_nm])
+
+
+@dataclass(frozen=True, slots=True)
+class Decision:
+    """One decision of the symbolic controller.
+
+    Attributes:
+        t_ns: Time of the decision (ns).
+        state: Estimated state (x m, y m, psi rad) the decision was taken at.
+        cell: Flat grid cell index of `state`; -1 outside the grid.
+        value: Value function at the cell (steps to target); +inf outside the winning set.
+        winning: Whether the cell is in the winning set.
+        safe_inputs: The safe inputs (u m/s, v m/s, r rad/s), one triple per input.
+        safe_input_indices: Index of each safe input in the controller's input grid.
+        chosen_index: Input-grid index of the chosen input; -1 when none was chosen.
+        chosen_input: The chosen (u, v, r); zeros when `chosen_index` is -1.
+        controller_version: Counter bumped on every re-synthesis swap.
+        scenario_hash: Hash of the scenario the controller was synthesized for.
+    """
+
+    t_ns: int
+    state: Vec3
+    cell: int
+    value: float
+    winning: bool
+    safe_inputs: tuple[Vec3, ...]
+    safe_input_indices: tuple[int, ...]
+    chosen_index: int
+    chosen_input: Vec3
+    controller_version: int
+    scenario_hash: str
+
+    def __post_init__(self) -> None:
+        _check_time("decision", self.t_ns)
+        _check_finite("decision state", self.state)
+        _check_finite("decision chosen input", self.chosen_input)
+        for row in self.safe_inputs:
+            if len(row) != 3:
+                raise RecordValueError(f"decision safe input must be (u, v, r), got {row!r}")
+            _check_finite("decision safe input", row)
+        if math.isnan(self.value) or self.value == -math.inf:
+            raise RecordValueError(f"decision value must be finite or +inf, got {self.value!r}")
+        if len(self.safe_input_indices) != len(self.safe_inputs):
+            raise RecordValueError(
+                f"decision has {len(self.safe_inputs)} safe inputs but "
+                f"{len(self.safe_input_indices)} indices: {self.safe_input_indices!r}"
+            )
+        if self.chosen_index < -1:
+            raise RecordValueError(
+                f"decision chosen_index must be >= -1, got {self.chosen_index!r}"
+            )
+        if not 0 <= self.controller_version < 2**32:
+            raise RecordValueError(
+                f"decision controller_version must fit uint32, got {self.controller_version!r}"
+            )
+
+    @staticmethod
+    def from_arrays(
+        t_ns: int,
+        state: ArrayLike,
+        cell: int,
+        value: float,
+        winning: bool,
+        safe_inputs: ArrayLike,
+        safe_input_indices: ArrayLike,
+        chosen_index: int,
+        controller_version: int,
+        scenario_hash: str,
+        chosen_input: ArrayLike | None = None,
+    ) -> Decision:
+        """Build a decision from numpy arrays.
+
+        Args:
+            t_ns: Time of the decision (ns).
+            state: (x, y, psi), shape (3,).
+            cell: Flat cell index, -1 outside the grid.
+            value: Value at the cell (+inf outside the winning set).
+            winning: Whether the cell is winning.
+            safe_inputs: Safe inputs, shape (k, 3), rows (u, v, r).
+            safe_input_indices: Input-grid indices, shape (k,).
+            chosen_index: Input-grid index of the chosen input, -1 for none.
+            controller_version: Re-synthesis counter.
+            scenario_hash: Scenario hash.
+            chosen_input: The chosen (u, v, r), shape (3,); looked up in `safe_inputs`
+                when omitted (zeros when `chosen_index` is -1).
+
+        Returns:
+            The decision.
+
+        Raises:
+            RecordValueError: Shapes do not match or a value is not finite.
+        """
+        inputs = np.asarray(safe_inputs, dtype=np.float64).reshape(-1, 3)
+        indices = np.asarray(safe_input_indices, dtype=np.int64).reshape(-1)
+        if chosen_input is None:
+            hits = np.flatnonzero(indices == chosen_index)
+            if chosen_index == -1:
+                chosen: Vec3 = (0.0, 0.0, 0.0)
+            elif hits.size:
+                chosen = _vec3("chosen input", inputs[hits[0]])
+            else:
+                raise RecordValueError(
+                    f"chosen_index {chosen_index!r} is not among the safe inputs "
+                    f"{indices.tolist()!r}; pass chosen_input"
+                )
+        else:
+            chosen = _vec3("chosen input", chosen_input)
+        return Decision(
+            t_ns=int(t_ns),
+            state=_vec3("decision state", state),
+            cell=int(cell),
+            value=float(value),
+            winning=bool(winning),
+            safe_inputs=tuple((float(u), float(v), float(r)) for u, v, r in inputs),
+            safe_input_indices=tuple(int(i) for i in indices),
+            chosen_index=int(chosen_index),
+            chosen_input=chosen,
+            controller_version=int(controller_version),
+            scenario_hash=str(scenario_hash),
+        )
+
+    def safe_inputs_array(self) -> FloatArray:
+        """Return the safe inputs, shape (k, 3), rows (u, v, r)."""
+        return np.array(self.safe_inputs, dtype=np.float64).reshape(-1, 3)
+
+
+class EventLevel(enum.IntEnum):
+    """Severity of an event (the values of rcl_interfaces/Log)."""
+
+    DEBUG = 10
+    INFO = 20
+    WARN = 30
+    ERROR = 40
+    FATAL = 50
+
+
+@dataclass(frozen=True, slots=True)
+class Event:
+    """A runtime event or fault (pose lost, sample rejected, no winning set, ...).
+
+    Attributes:
+        t_ns: Time of the event (ns).
+        level: Severity.
+        code: Short machine-readable code, e.g. ``"pose_stale"``.
+        text: Human-readable description.
+    """
+
+    t_ns: int
+    level: EventLevel
+    code: str
+    text: str
+
+    def __post_init__(self) -> None:
+        _check_time("event", self.t_ns)
+        if not isinstance(self.level, EventLevel):
+            raise RecordValueError(f"event level must be an EventLevel, got {self.level!r}")

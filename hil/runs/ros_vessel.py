@@ -1,0 +1,143 @@
+"""The simulated C/S Voyager as a ROS 2 node (`hil sim-vessel`).
+
+It publishes the motion-capture pose (in the lab's NED frame, through the
+configured arena transform) and the IMU on the lab's topics, applies the
+thruster commands it receives, and can publish `/clock` so that both sides run
+on simulated time faster than real time. The stack on the other side talks to
+it exactly as it will talk to the vessel.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import replace
+from typing import Any
+
+from hil.adapters.ros import (
+    NS_PER_S,
+    RosBackendError,
+    RosConfig,
+    fill_imu_msg,
+    fill_pose_msg,
+    thruster_command_from_components,
+)
+from hil.adapters.sim import SimWorld
+from hil.core.samples import ThrusterCommand
+
+# Simulated time advanced per publication cycle (s).
+_CYCLE_S = 0.01
+
+
+class SimVesselNode:
+    """A :class:`SimWorld` behind the lab's ROS 2 topics.
+
+    Args:
+        world: The simulated world (its sensors, plant and obstacles).
+        config: Topics, frames and domain; `use_sim_time` makes it publish `/clock`.
+        speed: Simulated seconds per wall second (1 = real time).
+    """
+
+    def __init__(self, world: SimWorld, config: RosConfig, speed: float = 1.0) -> None:
+        if not speed > 0:
+            raise ValueError(f"speed must be positive, got {speed!r}")
+        self.world = world
+        self.config = config
+        self.speed = speed
+        self._stop = threading.Event()
+        self._wrench: dict[str, tuple[float, float]] = {
+            "tunnel": (0.0, 0.0),
+            "port": (0.0, 0.0),
+            "starboard": (0.0, 0.0),
+        }
+        self._command: ThrusterCommand | None = None
+        self._lock = threading.Lock()
+        self.commands_received = 0
+
+    def stop(self) -> None:
+        """Ask :meth:`run` to return (safe from a signal handler)."""
+        self._stop.set()
+
+    def _on_wrench(self, name: str, msg: Any) -> None:
+        with self._lock:
+            self._wrench[name] = (float(msg.force.x), float(msg.force.y))
+            self.commands_received += 1
+
+    def run(self, duration_s: float | None = None) -> None:
+        """Publish and simulate until stopped or `duration_s` of simulated time has passed.
+
+        Raises:
+            RosBackendError: rclpy or the message packages are missing.
+        """
+        try:
+            import rclpy
+            from geometry_msgs.msg import PoseWithCovarianceStamped, Wrench
+            from rclpy.executors import SingleThreadedExecutor
+            from rosgraph_msgs.msg import Clock
+            from sensor_msgs.msg import Imu
+        except ImportError as err:
+            raise RosBackendError(f"sim-vessel needs rclpy and the ROS message packages ({err})"
+                                  ) from err
+        cfg = self.config
+        context = rclpy.Context()
+        if cfg.domain_id is None:
+            rclpy.init(context=context)
+        else:
+            rclpy.init(context=context, domain_id=cfg.domain_id)
+        node = rclpy.create_node("hil_sim_vessel", context=context)
+        try:
+            pose_pub = node.create_publisher(PoseWithCovarianceStamped, cfg.topics.pose,
+                                             cfg.qos_depth)
+            imu_pub = node.create_publisher(Imu, cfg.topics.imu, cfg.qos_depth)
+            clock_pub = node.create_publisher(Clock, "/clock", 10) if cfg.use_sim_time else None
+            for name in ("tunnel", "port", "starboard"):
+                node.create_subscription(
+                    Wrench, getattr(cfg.topics, name),
+                    lambda msg, n=name: self._on_wrench(n, msg), cfg.qos_depth)
+            executor = SingleThreadedExecutor(context=context)
+            executor.add_node(node)
+            # In wall time, samples carry the node's wall clock, as the real sensors do.
+            offset_ns = 0 if clock_pub is not None else int(node.get_clock().now().nanoseconds)
+            self._loop(executor, pose_pub, imu_pub, clock_pub, PoseWithCovarianceStamped, Imu,
+                       Clock, duration_s, offset_ns)
+            executor.shutdown()
+        finally:
+            node.destroy_node()
+            context.try_shutdown()
+
+    def _loop(self, executor: Any, pose_pub: Any, imu_pub: Any, clock_pub: Any,
+              pose_type: Any, imu_type: Any, clock_type: Any, duration_s: float | None,
+              offset_ns: int) -> None:
+        world = self.world
+        wall_start = time.monotonic()
+        cycle_ns = round(_CYCLE_S * NS_PER_S)
+        t_ns = world.clock.now_ns()
+        while not self._stop.is_set():
+            if duration_s is not None and t_ns >= duration_s * NS_PER_S:
+                return
+            executor.spin_once(timeout_sec=0.0)
+            with self._lock:
+                port, stbd, tunnel = self._wrench["port"], self._wrench["starboard"], \
+                    self._wrench["tunnel"]
+            self._command = thruster_command_from_components(t_ns, tunnel[0], port, stbd,
+                                                             self._command)
+            world.thrusters.send(self._command)
+            t_ns += cycle_ns
+            world.clock.sleep_until(t_ns)
+            if clock_pub is not None:
+                msg = clock_type()
+                msg.clock.sec, msg.clock.nanosec = divmod(t_ns, NS_PER_S)
+                clock_pub.publish(msg)
+            for pose in world.pose.poll():
+                out = pose_type()
+                fill_pose_msg(out, replace(pose, t_ns=pose.t_ns + offset_ns),
+                              self.config.transform, self.config.pose_frame_id)
+                pose_pub.publish(out)
+            for imu in world.imu.poll():
+                out = imu_type()
+                fill_imu_msg(out, replace(imu, t_ns=imu.t_ns + offset_ns))
+                imu_pub.publish(out)
+            # Pace simulated time at `speed` x wall time.
+            ahead_s = (t_ns / NS_PER_S) / self.speed - (time.monotonic() - wall_start)
+            if ahead_s > 0:
+                time.sleep(ahead_s)

@@ -1,0 +1,243 @@
+"""The summary of one run: what a user reads first, and its JSON form.
+
+Tracking error is the paper's measure: the difference between the velocity
+reference as issued and the vessel's velocity (the estimate on the vessel; the
+simulator's truth in sim), RMS per axis over the time the vessel was under
+control, yaw in deg/s as the paper prints it.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+from rich.console import Console
+from rich.table import Table
+
+from hil.runs.clearance import hull_clearance_series
+from hil.runtime.loop import RunStats
+from hil.scenarios.scenario import Scenario
+
+FloatArray = NDArray[np.float64]
+
+PAPER_TRACKING_ERROR = (0.00768, 0.00431, 0.62108)
+"""The paper's tank figures: surge m/s, sway m/s, yaw deg/s (labelled MSE there)."""
+
+
+@dataclass(frozen=True, slots=True)
+class TrackingError:
+    """Velocity-tracking error per axis.
+
+    Attributes:
+        rms: RMS of (nu - nu_ref): surge m/s, sway m/s, yaw deg/s.
+        max_abs: Largest |nu - nu_ref| with the same units.
+        samples: Number of samples it was computed over.
+    """
+
+    rms: tuple[float, float, float]
+    max_abs: tuple[float, float, float]
+    samples: int
+
+    @staticmethod
+    def between(nu: FloatArray, nu_ref: FloatArray) -> TrackingError:
+        """Compute the error of velocities `nu` against references `nu_ref`, both (N, 3)."""
+        nu = np.asarray(nu, dtype=np.float64).reshape(-1, 3)
+        nu_ref = np.asarray(nu_ref, dtype=np.float64).reshape(-1, 3)
+        if nu.shape != nu_ref.shape:
+            raise ValueError(f"shapes differ: nu {nu.shape!r}, nu_ref {nu_ref.shape!r}")
+        if len(nu) == 0:
+            return TrackingError((math.nan, math.nan, math.nan), (math.nan, math.nan, math.nan), 0)
+        err = nu - nu_ref
+        err[:, 2] = np.degrees(err[:, 2])
+        rms = np.sqrt(np.mean(err**2, axis=0))
+        peak = np.max(np.abs(err), axis=0)
+        return TrackingError(
+            (float(rms[0]), float(rms[1]), float(rms[2])),
+            (float(peak[0]), float(peak[1]), float(peak[2])),
+            len(err),
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class RunSummary:
+    """What one run did.
+
+    Attributes:
+        scenario: Scenario name or path.
+        seed: Seed of the simulated world (None on the vessel).
+        backend: "sim" or "ros".
+        docked: Whether the vessel reached and held the target.
+        end_reason: Why the run ended.
+        docking_time_s: Time from start to reaching the target (s), None if never.
+        duration_s: Simulated (or wall) time of the run (s).
+        wall_s: Wall-clock time the run took (s).
+        min_clearance_m: Smallest distance between the hull and a real obstacle (m);
+            negative means contact.
+        hull_contacts: Number of physics steps with the hull touching an obstacle.
+        decisions: Symbolic decisions taken.
+        resyntheses: Controllers synthesized and swapped in.
+        synthesis_mean_s: Mean synthesis time (s).
+        synthesis_max_s: Largest synthesis time (s).
+        not_winning_decisions: Decisions taken outside the winning set.
+        rejected_samples: Sensor samples the observer refused.
+        pose_losses: Times the pose feed went stale.
+        tracking: Tracking error against the reference.
+        period_jitter_p99_ms: 99th percentile of |tick period - nominal| (ms); zero
+            in simulated time.
+        overruns: Ticks that started more than one period late.
+        log: Where the run's log is (None when not recorded).
+    """
+
+    scenario: str
+    seed: int | None
+    backend: str
+    docked: bool
+    end_reason: str
+    docking_time_s: float | None
+    duration_s: float
+    wall_s: float
+    min_clearance_m: float
+    hull_contacts: int
+    decisions: int
+    resyntheses: int
+    synthesis_mean_s: float
+    synthesis_max_s: float
+    not_winning_decisions: int
+    rejected_samples: int
+    pose_losses: int
+    tracking: TrackingError
+    period_jitter_p99_ms: float
+    overruns: int
+    log: str | None
+
+    def to_json(self) -> str:
+        """Return the summary as one line of JSON (NaN and inf as null)."""
+
+        def clean(value: object) -> object:
+            if isinstance(value, float) and not math.isfinite(value):
+                return None
+            if isinstance(value, dict):
+                return {k: clean(v) for k, v in value.items()}
+            if isinstance(value, list | tuple):
+                return [clean(v) for v in value]
+            return value
+
+        data = clean(asdict(self))
+        assert isinstance(data, dict)
+        data["tracking_rms"] = data.pop("tracking")["rms"]
+        data["tracking_max_abs"] = clean(list(self.tracking.max_abs))
+        return json.dumps(data, sort_keys=True)
+
+    def render(self, console: Console | None = None) -> None:
+        """Print the summary as a table (rich)."""
+        console = console or Console()
+        verdict = "[bold green]DOCKED[/]" if self.docked else "[bold red]NOT DOCKED[/]"
+        console.print(
+            f"{verdict}  {self.scenario} (seed {self.seed}, {self.backend}): {self.end_reason}"
+        )
+        table = Table(show_header=True, header_style="bold")
+        table.add_column("measure")
+        table.add_column("value", justify="right")
+        table.add_column("paper (tank)", justify="right")
+        docking = (
+            "-"
+            if self.docking_time_s is None
+            else (f"{self.docking_time_s:.1f} s ({self.docking_time_s / 60:.2f} min)")
+        )
+        table.add_row("docking time", docking, "2.67 min (1.71-3.66)")
+        table.add_row("min hull clearance to real obstacles", f"{self.min_clearance_m:.3f} m", "-")
+        table.add_row("hull contacts", str(self.hull_contacts), "0")
+        table.add_row("decisions / re-syntheses", f"{self.decisions} / {self.resyntheses}", "-")
+        table.add_row(
+            "synthesis time mean / max",
+            f"{self.synthesis_mean_s * 1e3:.1f} / {self.synthesis_max_s * 1e3:.1f} ms",
+            "~500 ms (GPU)",
+        )
+        labels = ("surge (m/s)", "sway (m/s)", "yaw (deg/s)")
+        for label, rms, peak, paper in zip(
+            labels, self.tracking.rms, self.tracking.max_abs, PAPER_TRACKING_ERROR, strict=True
+        ):
+            table.add_row(f"tracking RMS / max, {label}", f"{rms:.5f} / {peak:.4f}", f"{paper}")
+        table.add_row("decisions outside winning set", str(self.not_winning_decisions), "-")
+        table.add_row(
+            "rejected samples / pose losses", f"{self.rejected_samples} / {self.pose_losses}", "-"
+        )
+        table.add_row(
+            "loop period jitter p99 / overruns",
+            f"{self.period_jitter_p99_ms:.2f} ms / {self.overruns}",
+            "-",
+        )
+        table.add_row(
+            "run time (simulated / wall)", f"{self.duration_s:.1f} s / {self.wall_s:.2f} s", "-"
+        )
+        console.print(table)
+        if self.log is not None:
+            console.print(f"log: {Path(self.log)}")
+
+
+def summarize_run(
+    *,
+    scenario: Scenario,
+    scenario_name: str,
+    seed: int | None,
+    backend: str,
+    stats: RunStats,
+    trajectory: FloatArray,
+    velocity: FloatArray,
+    wall_s: float,
+    log: str | None,
+    nominal_s: float = 0.05,
+) -> RunSummary:
+    """Summarize a finished run.
+
+    Args:
+        scenario: The scenario (real obstacles and hull for the clearance).
+        scenario_name: Name or path as the user gave it.
+        seed: Seed of the simulated world (None on the vessel).
+        backend: "sim" or "ros".
+        stats: The loop's counters and per-tick series.
+        trajectory: Poses (x, y, psi) to judge clearance on, shape (N, 3) (the
+            simulator's truth at every physics step, or the estimates on the vessel).
+        velocity: Body velocity at each tick of `stats`, shape (len(stats.t_ns), 3).
+        wall_s: Wall-clock duration (s).
+        log: Where the run is recorded.
+        nominal_s: The loop's nominal period (s).
+    """
+    clearance = hull_clearance_series(scenario, trajectory)
+    synth = stats.synthesis_seconds or [math.nan]
+    reached = stats.target_reached_ns
+    return RunSummary(
+        scenario=scenario_name,
+        seed=seed,
+        backend=backend,
+        docked=stats.docked_ns is not None,
+        end_reason=stats.end_reason,
+        docking_time_s=None if reached is None else (reached - stats.start_ns) / 1e9,
+        duration_s=(stats.end_ns - stats.start_ns) / 1e9,
+        wall_s=wall_s,
+        min_clearance_m=float(clearance.min()) if len(clearance) else math.inf,
+        hull_contacts=int(np.count_nonzero(clearance <= 0.0)),
+        decisions=stats.decisions,
+        resyntheses=stats.resyntheses,
+        synthesis_mean_s=float(np.mean(synth)),
+        synthesis_max_s=float(np.max(synth)),
+        not_winning_decisions=stats.not_winning_decisions,
+        rejected_samples=stats.rejected_samples,
+        pose_losses=stats.pose_losses,
+        tracking=TrackingError.between(velocity, np.asarray(stats.nu_ref).reshape(-1, 3)),
+        period_jitter_p99_ms=period_jitter_p99_ms(stats.tick_wall_ns, nominal_s),
+        overruns=stats.overruns,
+        log=log,
+    )
+
+
+def period_jitter_p99_ms(tick_ns: list[int], nominal_s: float) -> float:
+    """Return the 99th percentile of |period - nominal| over consecutive ticks (ms)."""
+    if len(tick_ns) < 2:
+        return 0.0
+    periods = np.diff(np.asarray(tick_ns, dtype=np.int64)).astype(np.float64) / 1e6
+    return float(np.percentile(np.abs(periods - nominal_s * 1e3), 99))

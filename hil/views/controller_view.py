@@ -1,0 +1,202 @@
+"""What the symbolic controller saw at each recorded decision, rebuilt from the log.
+
+Two pictures per decision:
+
+- the safe inputs as predicted arcs: the kinematic model with body velocities held
+  for tau, in closed form (DESIGN.md): the position after t is
+  ``p0 + R(psi0) d(nu, t)`` with ``d`` from
+  :func:`hil.controllers.symbolic.abstraction.displacement`;
+- the winning set at the decision's heading cell: the controller is synthesized
+  again for the layout in force at the decision (the same grid, tables and
+  inflation as the run, :class:`hil.runtime.assembly.LayoutSolver`), and the
+  (nx, ny) slice of its value function V at that heading cell is kept.
+
+Re-synthesis runs once per distinct layout, not per decision.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hil.bag.run_data import Layout, RunData
+from hil.controllers.symbolic import Controller, Grid, SymbolicError
+from hil.controllers.symbolic.abstraction import displacement
+from hil.core.records import Decision
+from hil.runs.sim_run import scenario_hash, synthesizer_for
+from hil.runtime.assembly import LayoutSolver, obstacles_from_layout
+from hil.scenarios.scenario import Scenario, ScenarioError, load_scenario, packaged_scenarios
+
+FloatArray = NDArray[np.float64]
+I32Array = NDArray[np.int32]
+
+
+def scenario_for(run: RunData) -> tuple[Scenario | None, str]:
+    """Return the run's scenario and a note ("" when found as recorded).
+
+    The scenario named in the log's metadata; failing that (a bare ``.mcap``
+    split, a renamed file), the packaged scenario whose hash the decisions carry.
+    """
+    name = run.run.scenario_file if run.run is not None else ""
+    problem = "the log names no scenario"
+    if name:
+        try:
+            return load_scenario(name), ""
+        except ScenarioError as err:
+            problem = f"scenario {name!r} cannot be loaded ({err})"
+    hashes = {d.scenario_hash for d in run.decisions} - {""}
+    for candidate in packaged_scenarios():
+        scenario = load_scenario(candidate)
+        if scenario_hash(scenario) in hashes:
+            return scenario, f"{problem}; using packaged scenario {candidate!r} (same hash)"
+    return None, f"{problem}: arena, targets and winning set are left out"
+
+
+def predicted_arcs(
+    state: Sequence[float], inputs: FloatArray, tau_s: float, n_points: int = 16
+) -> FloatArray:
+    """Return the positions the kinematic model predicts over [0, tau] for each input.
+
+    Args:
+        state: Start pose (x m, y m, psi rad).
+        inputs: Body velocities held for tau, shape (m, 3), rows (u m/s, v m/s, r rad/s).
+        tau_s: Holding time (s).
+        n_points: Points per arc (>= 2), evenly spaced in time from 0 to tau.
+
+    Returns:
+        Arena positions, shape (m, n_points, 2), indexed [input, time, (x, y)] in m.
+    """
+    x0, y0, psi0 = (float(v) for v in state)
+    inputs = np.asarray(inputs, dtype=np.float64).reshape(-1, 3)
+    t_s = np.linspace(0.0, tau_s, max(n_points, 2))
+    d = displacement(inputs, t_s)  # (m, T, 2) in the start body frame
+    c, s = math.cos(psi0), math.sin(psi0)
+    x = x0 + c * d[..., 0] - s * d[..., 1]
+    y = y0 + s * d[..., 0] + c * d[..., 1]
+    out: FloatArray = np.stack([x, y], axis=-1)
+    return out
+
+
+def inflated_outlines(scenario: Scenario, layout: Layout) -> tuple[FloatArray, ...]:
+    """Return the inflated obstacles of a layout, each shape (n, 2) in m.
+
+    The recorded inflated polygons when the log holds them, else the layout's
+    obstacles inflated the way the run's solver inflates them.
+    """
+    if layout.inflated:
+        return layout.inflated
+    obstacles = obstacles_from_layout(scenario, layout.as_obstacle_layout())
+    return tuple(o.inflated.vertices() for o in obstacles)
+
+
+@dataclass(frozen=True, slots=True)
+class WinningSlice:
+    """The value function at one heading cell.
+
+    Attributes:
+        grid: The controller's grid.
+        heading_cell: Heading cell k of the slice.
+        values: V[:, :, k], shape (nx, ny) indexed [i, j]: steps of tau to the
+            target, -1 outside the winning set.
+        obstacles: Obstacle cells, shape (nx, ny) indexed [i, j].
+    """
+
+    grid: Grid
+    heading_cell: int
+    values: I32Array
+    obstacles: NDArray[np.bool_]
+
+    @property
+    def winning_cells(self) -> int:
+        """Return the number of winning cells in the slice."""
+        return int(np.count_nonzero(self.values >= 0))
+
+
+@dataclass(frozen=True, slots=True)
+class ControllerView:
+    """The controller's view at every decision of a run.
+
+    Attributes:
+        slices: One winning-set slice per decision (None where none could be made).
+        note: Why slices are missing ("" when all were made).
+    """
+
+    slices: tuple[WinningSlice | None, ...]
+    note: str = ""
+
+
+def heading_cell(grid: Grid, decision: Decision) -> int | None:
+    """Return the heading cell of a decision (from its flat cell index, else its state)."""
+    if 0 <= decision.cell < grid.n_cells:
+        return decision.cell % grid.npsi
+    cell = grid.cell_of(decision.state)
+    return None if cell is None else cell[2]
+
+
+def controller_view(
+    run: RunData, scenario: Scenario, budget_s: float | None = None
+) -> ControllerView:
+    """Re-synthesize the run's controller per layout and slice V at each decision.
+
+    Args:
+        run: The recorded run.
+        scenario: The scenario the run used (its grid, inputs, inflation, target).
+        budget_s: Wall time allowed for re-synthesis (s); once spent, decisions
+            under a layout not yet solved get no slice (a run whose obstacles
+            move all the time has a layout per decision). None: no limit. The
+            first layout is always solved.
+
+    Returns:
+        The slices; a decision without a layout, outside the grid, whose layout
+        has no winning set, or past the budget gets None, and the note says why.
+    """
+    if not run.decisions:
+        return ControllerView(())
+    notes: list[str] = []
+    recorded = {d.scenario_hash for d in run.decisions} - {""}
+    if recorded and scenario_hash(scenario) not in recorded:
+        notes.append(
+            f"scenario {scenario.name!r} has changed since the run (hash "
+            f"{scenario_hash(scenario)!r}, log {sorted(recorded)!r}): the winning set may differ"
+        )
+    start = time.perf_counter()
+    solver = LayoutSolver(scenario, synthesizer_for(scenario))
+    controllers: dict[tuple[object, ...], Controller | None] = {}
+    slices: list[WinningSlice | None] = []
+    over_budget = 0
+    for decision in run.decisions:
+        layout = run.layout_at(decision.t_ns)
+        if layout is None:
+            slices.append(None)
+            continue
+        key = tuple(layout.rectangles)
+        spent = time.perf_counter() - start
+        if key not in controllers and controllers and budget_s is not None and spent > budget_s:
+            over_budget += 1
+            slices.append(None)
+            continue
+        if key not in controllers:
+            try:
+                controllers[key] = solver(layout.as_obstacle_layout()).controller
+            except SymbolicError as err:
+                notes.append(f"layout at t={layout.t_ns} ns: {err}")
+                controllers[key] = None
+        controller = controllers[key]
+        k = None if controller is None else heading_cell(controller.grid, decision)
+        if controller is None or k is None:
+            slices.append(None)
+            continue
+        slices.append(
+            WinningSlice(controller.grid, k, controller.values[:, :, k], controller.obstacles)
+        )
+    if over_budget:
+        notes.append(
+            f"re-synthesis budget of {budget_s:g} s spent after {len(controllers)} layout(s): "
+            f"no winning set at {over_budget} later decision(s)"
+        )
+    return ControllerView(tuple(slices), "; ".join(notes))

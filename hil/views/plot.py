@@ -1,0 +1,221 @@
+"""A one-page picture of a recorded run, like the paper's Fig. 6-8 (matplotlib, Agg).
+
+Left: the arena as in the paper (x right, y up) with the boundary, the real
+obstacles (filled) and the inflated ones (dashed), the target T1 and the abstract
+target T2, the estimated trajectory, and the hull outline every few seconds.
+Right: velocity tracking per axis, commanded (nu_ref) against estimated (nu_hat),
+with yaw rate in deg/s as the paper reports it.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+from matplotlib.patches import Polygon as PolygonPatch
+from numpy.typing import NDArray
+
+from hil.bag.run_data import RunData
+from hil.scenarios.scenario import Hull, Scenario, hull_footprint
+from hil.views.controller_view import inflated_outlines
+
+FloatArray = NDArray[np.float64]
+
+FIGURE_SIZE_IN = (13.0, 6.5)
+"""Figure size (width, height) in inches; the PNG is this times the dpi, in pixels."""
+DEFAULT_DPI = 110
+HULL_EVERY_S = 5.0
+"""Default time between two hull outlines (s)."""
+
+_AXES = (
+    ("surge u (m/s)", 1.0),
+    ("sway v (m/s)", 1.0),
+    ("yaw rate r (deg/s)", 180.0 / math.pi),
+)
+
+
+def _closed(xy: FloatArray) -> tuple[FloatArray, FloatArray]:
+    ring = np.vstack([xy, xy[:1]])
+    return ring[:, 0], ring[:, 1]
+
+
+def _hull_times(t_ns: NDArray[np.int64], every_s: float) -> NDArray[np.intp]:
+    """Return the indices of the samples nearest to every `every_s` seconds, and the last."""
+    if not len(t_ns):
+        return np.zeros(0, dtype=np.intp)
+    marks = np.arange(t_ns[0], t_ns[-1], max(every_s, 1e-3) * 1e9)
+    idx = np.unique(np.append(np.searchsorted(t_ns, marks), len(t_ns) - 1))
+    return np.asarray(np.clip(idx, 0, len(t_ns) - 1), dtype=np.intp)
+
+
+def draw_arena(ax: Axes, run: RunData, scenario: Scenario | None, hull_every_s: float) -> None:
+    """Draw the arena, obstacles, targets, trajectory and hull outlines on `ax`."""
+    if scenario is not None:
+        x, y = _closed(scenario.arena.vertices())
+        ax.plot(x, y, color="0.3", lw=1.5)
+        ax.add_patch(
+            PolygonPatch(
+                scenario.target.shape.vertices(),
+                closed=True,
+                fc="#b8e6c1",
+                ec="#2a9d48",
+                lw=1.2,
+                label="target T1",
+            )
+        )
+        x, y = _closed(scenario.abstract_target().vertices())
+        ax.plot(x, y, color="#2a9d48", lw=1.0, ls="--", label="abstract target T2")
+    layouts = run.layouts[-1:]  # the newest layout; moving obstacles: first one dotted
+    if len(run.layouts) > 1:
+        for poly in run.layouts[0].real:
+            x, y = _closed(poly)
+            ax.plot(x, y, color="#c0392b", lw=0.8, ls=":")
+    for layout in layouts:
+        for n, poly in enumerate(layout.real):
+            ax.add_patch(
+                PolygonPatch(
+                    poly,
+                    closed=True,
+                    fc="#e8a09a",
+                    ec="#c0392b",
+                    lw=1.2,
+                    label="obstacle" if n == 0 else None,
+                )
+            )
+        inflated = inflated_outlines(scenario, layout) if scenario is not None else layout.inflated
+        for n, poly in enumerate(inflated):
+            x, y = _closed(poly)
+            ax.plot(
+                x,
+                y,
+                color="#e67e22",
+                lw=1.0,
+                ls="--",
+                label="inflated obstacle" if n == 0 else None,
+            )
+    path = run.estimate if len(run.estimate) else run.pose
+    xy = path.values[:, :2]
+    if len(xy):
+        ax.plot(xy[:, 0], xy[:, 1], color="#1f5fbf", lw=1.6, label="trajectory (estimate)")
+        ax.plot(*xy[0], marker="o", color="#1f5fbf", ms=6)
+        ax.plot(*xy[-1], marker="s", color="#1f5fbf", ms=6)
+    hull = scenario.hull if scenario is not None else Hull()
+    for n, i in enumerate(_hull_times(path.t_ns, hull_every_s)):
+        x_m, y_m, psi = path.values[i, :3]
+        outline = hull_footprint(hull, float(x_m), float(y_m), float(psi)).vertices()
+        ax.add_patch(
+            PolygonPatch(
+                outline,
+                closed=True,
+                fill=False,
+                ec="#34495e",
+                lw=0.8,
+                label=f"hull every {hull_every_s:g} s" if n == 0 else None,
+            )
+        )
+        bow = np.array([x_m, y_m]) + 0.5 * hull.length_m * np.array([math.cos(psi), math.sin(psi)])
+        ax.plot([x_m, bow[0]], [y_m, bow[1]], color="#34495e", lw=0.8)
+    if scenario is not None:
+        ax.set_xlim(scenario.x_range_m[0] - 0.2, scenario.x_range_m[1] + 0.2)
+        ax.set_ylim(scenario.y_range_m[0] - 0.2, scenario.y_range_m[1] + 0.2)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.grid(True, lw=0.3, alpha=0.5)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=3, fontsize=8, frameon=False)
+
+
+def draw_velocity(axes: list[Axes], run: RunData) -> None:
+    """Draw commanded against estimated velocity, one axis per row."""
+    for k, (ax, (label, scale)) in enumerate(zip(axes, _AXES, strict=True)):
+        if len(run.reference):
+            ax.step(
+                run.reference.t_s,
+                run.reference.values[:, k] * scale,
+                where="post",
+                color="#c0392b",
+                lw=1.2,
+                label="commanded",
+            )
+        if len(run.estimate):
+            ax.plot(
+                run.estimate.t_s,
+                run.estimate.values[:, 3 + k] * scale,
+                color="#1f5fbf",
+                lw=1.0,
+                label="estimated",
+            )
+        ax.set_ylabel(label, fontsize=9)
+        ax.grid(True, lw=0.3, alpha=0.5)
+    axes[0].legend(loc="lower right", bbox_to_anchor=(1.0, 1.0), fontsize=8, ncol=2, frameon=False)
+    axes[-1].set_xlabel("time (s)")
+
+
+def _title(run: RunData, scenario: Scenario | None) -> str:
+    info = run.run
+    name = scenario.name if scenario is not None else (info.scenario_file if info else "?")
+    seed = info.seed if info is not None and info.seed is not None else "-"
+    outcome = next(
+        (e.code for e in reversed(run.events) if e.code in {"docked", "timeout", "stopped"}), ""
+    )
+    duration_s = (run.end_ns - run.start_ns) / 1e9
+    return (
+        f"{run.path.name}: scenario {name}, seed {seed}, {duration_s:.1f} s, "
+        f"{len(run.decisions)} decisions" + (f", {outcome}" if outcome else "")
+    )
+
+
+def run_figure(
+    run: RunData,
+    scenario: Scenario | None,
+    hull_every_s: float = HULL_EVERY_S,
+) -> Figure:
+    """Return the one-page figure of a run (size :data:`FIGURE_SIZE_IN`)."""
+    fig = plt.figure(figsize=FIGURE_SIZE_IN)
+    grid = fig.add_gridspec(
+        3,
+        2,
+        width_ratios=(1.35, 1.0),
+        left=0.06,
+        right=0.98,
+        top=0.92,
+        bottom=0.1,
+        wspace=0.18,
+        hspace=0.28,
+    )
+    arena = fig.add_subplot(grid[:, 0])
+    draw_arena(arena, run, scenario, hull_every_s)
+    first = fig.add_subplot(grid[0, 1])
+    velocity = [
+        first,
+        fig.add_subplot(grid[1, 1], sharex=first),
+        fig.add_subplot(grid[2, 1], sharex=first),
+    ]
+    draw_velocity(velocity, run)
+    fig.suptitle(_title(run, scenario), fontsize=11)
+    return fig
+
+
+def save_run_figure(
+    run: RunData,
+    scenario: Scenario | None,
+    path: str | Path,
+    dpi: int = DEFAULT_DPI,
+    hull_every_s: float = HULL_EVERY_S,
+) -> Path:
+    """Write the run's figure as a PNG of FIGURE_SIZE_IN x `dpi` pixels; return its path."""
+    fig = run_figure(run, scenario, hull_every_s)
+    try:
+        out = Path(path)
+        fig.savefig(out, dpi=dpi, format="png")
+    finally:
+        plt.close(fig)
+    return out

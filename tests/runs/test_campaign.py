@@ -1,0 +1,80 @@
+import math
+
+import pytest
+
+from hil.runs.campaign import CampaignStats, StartRegion, campaign_specs, draw_starts
+from hil.runs.sim_run import SimRunSpec, synthesizer_for
+from hil.runs.summary import RunSummary, TrackingError
+from hil.runtime.assembly import LayoutSolver, layout_from_scenario
+from hil.scenarios.scenario import load_scenario
+
+
+def test_starts_are_winning_seeded_and_inside_the_region() -> None:
+    scenario = load_scenario("coarse")
+    controller = LayoutSolver(scenario, synthesizer_for(scenario))(
+        layout_from_scenario(scenario)
+    ).controller
+    region = StartRegion(x_m=(3.0, 4.0), y_m=(-2.4, 2.4))
+    starts, _ = draw_starts(controller, 30, seed=11, region=region)
+    again, _ = draw_starts(controller, 30, seed=11, region=region)
+    assert starts == again
+    assert len(set(starts)) == 30
+    for x, y, psi in starts:
+        assert 3.0 <= x <= 4.0
+        assert -2.4 <= y <= 2.4
+        assert -math.pi <= psi < math.pi
+        assert controller.is_winning((x, y, psi))
+    specs = campaign_specs(SimRunSpec(scenario="coarse"), starts[:3], seed0=5)
+    assert [s.seed for s in specs] == [5, 6, 7]
+    assert [s.start for s in specs] == starts[:3]
+    assert all(s.out_dir is None for s in specs)
+
+
+def test_region_without_winning_states_is_refused() -> None:
+    scenario = load_scenario("coarse")
+    controller = LayoutSolver(scenario, synthesizer_for(scenario))(
+        layout_from_scenario(scenario)
+    ).controller
+    inside_o1 = StartRegion(x_m=(1.9, 2.1), y_m=(-2.0, -1.0))
+    with pytest.raises(ValueError, match="almost no winning state"):
+        draw_starts(controller, 2, seed=0, region=inside_o1)
+
+
+def _summary(docked: bool, t: float | None, clearance: float, contacts: int) -> RunSummary:
+    return RunSummary(
+        scenario="coarse",
+        seed=0,
+        backend="sim",
+        docked=docked,
+        end_reason="",
+        docking_time_s=t,
+        duration_s=100.0,
+        wall_s=2.0,
+        min_clearance_m=clearance,
+        hull_contacts=contacts,
+        decisions=10,
+        resyntheses=1,
+        synthesis_mean_s=0.1,
+        synthesis_max_s=0.1,
+        not_winning_decisions=0,
+        rejected_samples=0,
+        pose_losses=0,
+        tracking=TrackingError((0.01, 0.02, 1.0), (0.1, 0.1, 5.0), 100),
+        period_jitter_p99_ms=0.0,
+        overruns=0,
+        log=None,
+    )
+
+
+def test_stats_aggregate_docked_runs_only_for_times() -> None:
+    stats = CampaignStats.of(
+        [
+            _summary(True, 60.0, 0.5, 0),
+            _summary(True, 120.0, 0.3, 0),
+            _summary(False, None, -0.0, 3),
+        ]
+    )
+    assert (stats.runs, stats.docked, stats.contacts) == (3, 2, 1)
+    assert stats.docking_min == pytest.approx((1.5, 1.0, 2.0))
+    assert stats.min_clearance_m == 0.0
+    assert stats.tracking_rms == pytest.approx((0.01, 0.02, 1.0))

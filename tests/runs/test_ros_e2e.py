@@ -1,0 +1,152 @@
+"""End to end over real DDS: the simulated vessel and the stack in two processes.
+
+`hil sim-vessel` publishes pose, IMU and /clock on the lab's topics; `hil vessel`
+runs the stack on the ROS backend with ROS sim time, docks in the coarse
+scenario and records the run. Each test run gets its own ROS_DOMAIN_ID and
+stays on loopback; both processes are killed whatever happens.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from hil.bag.reader import BagReader
+from hil.core.records import Event
+from hil.core.samples import ThrusterCommand
+
+pytest.importorskip("rclpy")
+pytestmark = pytest.mark.ros
+
+HIL = [sys.executable, "-m", "hil"]
+
+
+def _env(domain_id: int) -> dict[str, str]:
+    env = dict(os.environ)
+    env["ROS_DOMAIN_ID"] = str(domain_id)
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    return env
+
+
+def _stop(proc: subprocess.Popen[bytes]) -> None:
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+
+
+def test_stack_docks_the_simulated_vessel_over_dds(tmp_path: Path) -> None:
+    domain = 150 + os.getpid() % 80
+    config = tmp_path / "vessel.toml"
+    config.write_text(f"""
+scenario = "coarse"
+runs_dir = "{tmp_path / "runs"}"
+[ros]
+use_sim_time = true
+domain_id = {domain}
+[loop]
+max_duration_s = 120.0
+resynthesis_period_s = 20.0
+""")
+    out = tmp_path / "run"
+    # Start below O2, heading west: a short slalom into the target.
+    vessel = subprocess.Popen(
+        [
+            *HIL,
+            "sim-vessel",
+            "coarse",
+            "--clock",
+            "--speed",
+            "2",
+            "--start=-0.3,-1.6,180",
+            "--domain-id",
+            str(domain),
+            "--duration",
+            "400",
+        ],
+        env=_env(domain),
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    stack = None
+    try:
+        stack = subprocess.Popen(
+            [*HIL, "vessel", "--config", str(config), "--out", str(out), "--json"],
+            env=_env(domain),
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        stdout, stderr = stack.communicate(timeout=240)
+    finally:
+        if stack is not None and stack.poll() is None:
+            stack.kill()
+            stack.wait()
+        _stop(vessel)
+    assert stack.returncode == 0, stderr[-3000:] + stdout[-3000:]
+    summary = json.loads(stdout.strip().splitlines()[-1])
+    assert summary["docked"] is True
+    assert summary["backend"] == "ros"
+    assert summary["hull_contacts"] == 0
+    with BagReader(out) as reader:
+        info = reader.info
+        counts = {t.name: t.message_count for t in info.topics}
+    assert counts["/hil/decision"] == summary["decisions"]
+    assert counts["/voyager/measurement/pose"] > 1000
+    assert info.run is not None
+    assert info.run.backend == "ros"
+
+
+def test_sigterm_zeroes_thrust_and_closes_the_log(tmp_path: Path) -> None:
+    domain = 150 + (os.getpid() + 40) % 80
+    config = tmp_path / "vessel.toml"
+    config.write_text(f"""
+scenario = "coarse"
+[ros]
+domain_id = {domain}
+""")
+    out = tmp_path / "run"
+    vessel = subprocess.Popen(
+        [*HIL, "sim-vessel", "coarse", "--domain-id", str(domain)],
+        env=_env(domain),
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    stack = subprocess.Popen(
+        [*HIL, "vessel", "--config", str(config), "--out", str(out)],
+        env=_env(domain),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        # Wait until the stack is recording the vessel's poses, then ask it to stop.
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and not (out / "metadata.yaml").exists():
+            time.sleep(0.2)
+        time.sleep(4.0)
+        stack.send_signal(signal.SIGTERM)
+        _, stderr = stack.communicate(timeout=30)
+    finally:
+        if stack.poll() is None:
+            stack.kill()
+            stack.wait()
+        _stop(vessel)
+    assert stack.returncode in (0, 1), stderr[-3000:]
+    with BagReader(out) as reader:
+        records = list(reader.records(["/hil/events", "/hil/thrusters"]))
+    codes = [r.code for _, _, r in records if isinstance(r, Event)]
+    assert codes[-1] == "stopped"
+    commands = [r for _, _, r in records if isinstance(r, ThrusterCommand)]
+    last = commands[-1]
+    assert (last.tunnel, last.port, last.starboard) == (0.0, 0.0, 0.0)
