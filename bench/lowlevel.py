@@ -33,7 +33,8 @@ from numpy.typing import NDArray
 from hil.controllers.allocation import extended_matrix, force_limits
 from hil.model.environment import EnvironmentalLoad
 from hil.model.thrusters import ThrusterParams
-from hil.model.vessel import VesselParams, hydro_force
+from hil.model.coefficients import VesselParams
+from hil.model.dynamics import hydro_force
 from hil.sim.closed_loop import (
     AllocatorKind,
     ClosedLoopResult,

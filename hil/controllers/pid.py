@@ -31,7 +31,8 @@ from numpy.typing import NDArray
 from hil.controllers.allocation import axis_force_limits, matvec
 from hil.core.jit import njit
 from hil.model.thrusters import VOYAGER_THRUSTERS, ThrusterParams
-from hil.model.vessel import ENTERPRISE_I, VesselParams, hydro_force
+from hil.model.coefficients import ENTERPRISE_I, VesselParams
+from hil.model.dynamics import hydro_force
 
 FloatArray = NDArray[np.float64]
 

@@ -20,7 +20,7 @@ from rich.table import Table
 
 from hil.runs.clearance import hull_clearance_series
 from hil.runtime.loop import RunStats
-from hil.scenarios.scenario import Scenario
+from hil.scenarios import Scenario
 
 FloatArray = NDArray[np.float64]
 

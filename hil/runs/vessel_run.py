@@ -27,7 +27,7 @@ from hil.runs.summary import RunSummary, summarize_run
 from hil.runtime.assembly import layout_from_scenario, warm_up_kernels
 from hil.runtime.loop import LoopConfig, Runtime, World
 from hil.runtime.resynthesis import ResynthesisMode
-from hil.scenarios.scenario import load_scenario
+from hil.scenarios import load_scenario
 
 
 @dataclass(frozen=True)

@@ -46,13 +46,8 @@ from hil.model.thrusters import (
     thruster_force,
     thruster_update,
 )
-from hil.model.vessel import (
-    ENTERPRISE_I,
-    Integrator,
-    VesselParams,
-    acceleration,
-    integrate_step,
-)
+from hil.model.coefficients import ENTERPRISE_I, VesselParams
+from hil.model.dynamics import Integrator, acceleration, integrate_step
 from hil.sim.errors import ClosedLoopConfigError
 from hil.sim.sensors import (
     ImuSensorConfig,

@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 
 from hil.core.jit import njit
 from hil.model.thrusters import throttle_for_slew, thruster_force, thruster_update
-from hil.model.vessel import acceleration, integrate_step
+from hil.model.dynamics import acceleration, integrate_step
 
 FloatArray = NDArray[np.float64]
 

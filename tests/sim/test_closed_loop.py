@@ -14,7 +14,8 @@ from hil.controllers.observer import Ekf
 from hil.controllers.pid import PidOutput, VelocityPid
 from hil.model.errors import StateShapeError
 from hil.model.thrusters import Thrusters, ThrusterState, throttle_for_slew
-from hil.model.vessel import EnvironmentalLoad, Vessel, VesselState
+from hil.model.environment import EnvironmentalLoad
+from hil.model.vessel import Vessel, VesselState
 from hil.sim.closed_loop import (
     AllocatorKind,
     ClosedLoopResult,
