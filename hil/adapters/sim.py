@@ -25,10 +25,10 @@ from hil.core.samples import (
     ThrusterCommand,
 )
 from hil.core.shapes import Rect
-from hil.model.thrusters import VOYAGER_THRUSTERS, ThrusterParams
 from hil.model.coefficients import ENTERPRISE_I, VesselParams
 from hil.model.dynamics import Integrator
 from hil.model.environment import EnvironmentalLoad
+from hil.model.thrusters import VOYAGER_THRUSTERS, ThrusterParams
 from hil.model.vessel import Vessel
 from hil.sim.plant import N_PLANT, N_TRACE, P_ALPHA, P_ETA, TR_ETA, TR_NU, TR_NU_DOT, plant_advance
 from hil.sim.sensors import ImuSensorConfig, PoseSensorConfig, SimulatedImu, SimulatedPoseSensor

@@ -28,8 +28,8 @@ __all__ = [
     "Ekf",
     "ObserverConfig",
     "ObserverCounters",
+    "ObserverEstimate",
     "ObserverStatus",
-    "StateEstimate",
 ]
 
 
@@ -214,8 +214,11 @@ class ObserverConfig:
 
 
 @dataclass(frozen=True, slots=True)
-class StateEstimate:
-    """The observer's estimate at one time.
+class ObserverEstimate:
+    """The observer's estimate at one time, with its covariance and the IMU biases.
+
+    Not the recorded :class:`hil.core.records.StateEstimate` (pose and velocity
+    only, as the bag stores it); the runtime turns one into the other.
 
     Attributes:
         t_ns: Filter time (ns): the stamp of the newest sample fused.
@@ -395,7 +398,7 @@ class Ekf:
             k.obs_imu(self._a, int(t_ns), accel_x_mps2, accel_y_mps2, yaw_rate_radps)
         )
 
-    def estimate(self) -> StateEstimate:
+    def estimate(self) -> ObserverEstimate:
         """Return the estimate at the filter time (copies).
 
         Raises:
@@ -405,7 +408,7 @@ class Ekf:
             raise ObserverNotInitializedError("no pose has been fused yet")
         return _estimate(int(k.obs_time_ns(self._a)), self._a.x.copy(), self._a.P.copy())
 
-    def predicted(self, t_ns: int) -> StateEstimate:
+    def predicted(self, t_ns: int) -> ObserverEstimate:
         """Return the estimate extrapolated to `t_ns` (>= the filter time); change nothing.
 
         Raises:
@@ -427,8 +430,8 @@ class Ekf:
         return ObserverCounters(*(int(v) for v in self._a.counters))
 
 
-def _estimate(t_ns: int, x: FloatArray, P: FloatArray) -> StateEstimate:
-    return StateEstimate(
+def _estimate(t_ns: int, x: FloatArray, P: FloatArray) -> ObserverEstimate:
+    return ObserverEstimate(
         t_ns=t_ns,
         eta=x[0:3],
         nu=x[3:6],

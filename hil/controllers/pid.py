@@ -28,11 +28,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from hil.controllers.allocation import axis_force_limits, matvec
+from hil.controllers.allocation_kernels import matvec
+from hil.controllers.envelope import axis_force_limits
 from hil.core.jit import njit
-from hil.model.thrusters import VOYAGER_THRUSTERS, ThrusterParams
 from hil.model.coefficients import ENTERPRISE_I, VesselParams
 from hil.model.dynamics import hydro_force
+from hil.model.thrusters import VOYAGER_THRUSTERS, ThrusterParams
 
 FloatArray = NDArray[np.float64]
 

@@ -8,6 +8,8 @@ their kernel layout), :mod:`~hil.model.dynamics` (the compiled 3-DOF kernels),
 model for feed-forward and allocation) and the simulator build on it.
 """
 
+from hil.model.coefficients import ENTERPRISE_I, VesselParams
+from hil.model.dynamics import Integrator
 from hil.model.environment import EnvironmentalLoad
 from hil.model.errors import (
     EnvironmentConfigError,
@@ -18,8 +20,6 @@ from hil.model.errors import (
     VesselConfigError,
 )
 from hil.model.thrusters import VOYAGER_THRUSTERS, ThrusterParams, Thrusters, ThrusterState
-from hil.model.coefficients import ENTERPRISE_I, VesselParams
-from hil.model.dynamics import Integrator
 from hil.model.vessel import Vessel, VesselState
 
 __all__ = [

@@ -49,7 +49,6 @@ from hil.model.coefficients import (
     I_YVR,
     I_YVV,
     I_YVVV,
-    N_COEF,
 )
 
 FloatArray = NDArray[np.float64]

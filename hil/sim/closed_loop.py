@@ -26,9 +26,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from hil.controllers.allocation import (
-    MmaArrays,
-    MmaConfig,
+from hil.controllers.allocation import MmaArrays, MmaConfig
+from hil.controllers.allocation_kernels import (
     extended_matrix,
     mma_allocate,
     pseudo_inverse_allocate,
@@ -37,6 +36,8 @@ from hil.controllers.observer import ObserverConfig
 from hil.controllers.observer_kernels import EkfArrays, obs_imu, obs_init, obs_pose
 from hil.controllers.pid import DEFAULT_GAINS, N_PID_STATE, PidGains, pid_command, pid_integrate
 from hil.core.jit import njit
+from hil.model.coefficients import ENTERPRISE_I, VesselParams
+from hil.model.dynamics import Integrator, acceleration, integrate_step
 from hil.model.environment import EnvironmentalLoad
 from hil.model.errors import StateShapeError
 from hil.model.thrusters import (
@@ -46,8 +47,6 @@ from hil.model.thrusters import (
     thruster_force,
     thruster_update,
 )
-from hil.model.coefficients import ENTERPRISE_I, VesselParams
-from hil.model.dynamics import Integrator, acceleration, integrate_step
 from hil.sim.errors import ClosedLoopConfigError
 from hil.sim.sensors import (
     ImuSensorConfig,

@@ -13,8 +13,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hil.core.jit import njit
-from hil.model.thrusters import throttle_for_slew, thruster_force, thruster_update
 from hil.model.dynamics import acceleration, integrate_step
+from hil.model.thrusters import throttle_for_slew, thruster_force, thruster_update
 
 FloatArray = NDArray[np.float64]
 
