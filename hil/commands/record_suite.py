@@ -58,7 +58,7 @@ def suite() -> tuple[SuiteRun, ...]:
     """
     from hil.adapters.sim import ObstacleMotion, ThrusterOutage
     from hil.runs.sim_run import SimRunSpec
-    from hil.runtime.loop import LoopConfig
+    from hil.runtime.settings import LoopConfig
 
     loop = LoopConfig(max_duration_s=240.0)
     return (

@@ -70,7 +70,7 @@ def run(args: argparse.Namespace) -> int:
     from hil.bag.errors import ReplayError
     from hil.controllers.symbolic import SymbolicError
     from hil.runs.sim_run import SimRunSpec, run_in_sim
-    from hil.runtime.loop import LoopConfig
+    from hil.runtime.settings import LoopConfig
     from hil.scenarios import ScenarioError, load_scenario
 
     console = Console(stderr=args.json)

@@ -57,8 +57,9 @@ from hil.runs.sim_run import (
 )
 from hil.runs.summary import PAPER_TRACKING_ERROR
 from hil.runtime.assembly import LayoutSolver, SymbolicAdapter, select_index
-from hil.runtime.loop import LoopConfig, Mode, World
+from hil.runtime.loop import Mode, World
 from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer
+from hil.runtime.settings import LoopConfig
 from hil.runtime.stack import SymbolicController
 from hil.runtime.trace import MemoryLog
 from hil.scenarios import Scenario, ScenarioError, load_scenario
