@@ -17,13 +17,7 @@ from numpy.typing import NDArray
 
 from hil.core.geometry import wrap_angle
 from hil.core.jit import njit
-from hil.model.thrusters import (
-    T_K_TUNNEL,
-    T_LX_PORT,
-    T_LX_TUNNEL,
-    T_LY_PORT,
-    T_UMAX_TUNNEL,
-)
+from hil.model.thrusters import T_K_TUNNEL, T_LX_PORT, T_LX_TUNNEL, T_LY_PORT, T_UMAX_TUNNEL
 
 FloatArray = NDArray[np.float64]
 

@@ -33,7 +33,8 @@ from hil.controllers.allocation_kernels import (
     pseudo_inverse_allocate,
 )
 from hil.controllers.observer import ObserverConfig
-from hil.controllers.observer_kernels import EkfArrays, obs_imu, obs_init, obs_pose
+from hil.controllers.observer_arrays import EkfArrays
+from hil.controllers.observer_kernels import obs_imu, obs_init, obs_pose
 from hil.controllers.pid import DEFAULT_GAINS, N_PID_STATE, PidGains, pid_command, pid_integrate
 from hil.core.jit import njit
 from hil.model.coefficients import ENTERPRISE_I, VesselParams

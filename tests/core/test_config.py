@@ -3,15 +3,7 @@ from pathlib import Path
 import pytest
 
 from hil.adapters.ros import RosConfig
-from hil.core.config import (
-    ConfigError,
-    check_keys,
-    from_table,
-    load_toml,
-    number,
-    numbers,
-    table,
-)
+from hil.core.config import ConfigError, check_keys, from_table, load_toml, number, numbers, table
 from hil.runs.vessel_run import VesselConfig
 
 

@@ -9,14 +9,9 @@ import numpy as np
 import pytest
 
 from hil.model.coefficients import VesselParams
-from hil.model.dynamics import (
-    damping_matrix,
-)
+from hil.model.dynamics import damping_matrix
 from hil.model.errors import VesselConfigError
-from tests.model.twins import (
-    M,
-    P,
-)
+from tests.model.twins import M, P
 
 
 def test_mass_matrix_matches_published() -> None:

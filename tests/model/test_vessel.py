@@ -8,22 +8,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from hil.model.dynamics import (
-    Integrator,
-    euler_step,
-    hydro_force,
-)
+from hil.model.dynamics import Integrator, euler_step, hydro_force
 from hil.model.errors import NonFiniteForceError, StateShapeError, VesselConfigError
 from hil.model.vessel import Vessel, VesselState
-from tests.model.twins import (
-    COEF,
-    M_INV,
-    F,
-    M,
-    P,
-    accel_twin,
-    rot,
-)
+from tests.model.twins import COEF, M_INV, F, M, P, accel_twin, rot
 
 
 def test_invalid_dt_refused() -> None:
