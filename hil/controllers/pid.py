@@ -9,7 +9,7 @@ The law (acting in acceleration units, scaled by the inertia matrix):
 
 where e' = 0 while the achieved force misses the demand by more than a tolerance
 (conditional integration), else e; n(nu) = C(nu) nu + D(nu) nu is the force that holds nu
-steady (the vessel model's own :func:`hil.model.vessel.hydro_force` kernel), tau_max
+steady (the vessel model's own :func:`hil.model.dynamics.hydro_force` kernel), tau_max
 the thrust envelope per axis, tau_ach the force actually achieved (Astrom & Hagglund
 2006, Sec. 3.5, back-calculation and conditional integration; Fossen 2021, Sec. 12.2,
 feed-forward of the model). The derivative acts on the measurement through a

@@ -1,8 +1,8 @@
 """The whole low level in one compiled loop: sensors -> EKF -> PID -> allocation -> vessel.
 
 One ``@njit`` loop at the physics rate (100 Hz by default) built only from the kernels
-the Python-level classes use (:mod:`hil.model.vessel`, :mod:`hil.model.thrusters`,
-:mod:`hil.controllers.allocation`, :mod:`hil.controllers.pid`, and the observer's
+the Python-level classes use (:mod:`hil.model.dynamics`, :mod:`hil.model.thrusters`,
+:mod:`hil.controllers.allocation_kernels`, :mod:`hil.controllers.pid`, and the observer's
 kernels), so a 3-minute run takes a fraction of a second and there is one copy of the
 math. Per physics step k (t = k dt):
 
