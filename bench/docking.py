@@ -14,7 +14,7 @@ import argparse
 import time
 
 from hil.runs.sim_run import SimRunSpec, run_in_sim
-from hil.runtime.loop import LoopConfig
+from hil.runtime.settings import LoopConfig
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -30,10 +30,11 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import NDArray
 
-from hil.controllers.allocation import extended_matrix, force_limits
+from hil.controllers.allocation_kernels import extended_matrix, force_limits
+from hil.model.coefficients import VesselParams
+from hil.model.dynamics import hydro_force
 from hil.model.environment import EnvironmentalLoad
 from hil.model.thrusters import ThrusterParams
-from hil.model.vessel import VesselParams, hydro_force
 from hil.sim.closed_loop import (
     AllocatorKind,
     ClosedLoopResult,

@@ -18,9 +18,20 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
-from hil.controllers import observer_kernels as k
 from hil.controllers.observer import ObserverConfig
-from hil.controllers.observer_kernels import EkfArrays
+from hil.controllers.observer_arrays import EkfArrays
+from hil.controllers.observer_kernels import obs_imu, obs_init, obs_pose
+from hil.controllers.observer_math import (
+    P_GATE_GYRO,
+    P_GATE_POSE,
+    P_R_GYRO,
+    P_R_PSI,
+    P_R_X,
+    P_R_Y,
+    ekf_predict,
+    ekf_update_pose,
+    ekf_update_yaw_rate,
+)
 from hil.core.jit import njit
 
 FloatArray = NDArray[np.float64]
@@ -30,23 +41,23 @@ DT_NS = 10_000_000
 @njit
 def _bare_loop(x: FloatArray, P: FloatArray, meas: FloatArray, prm: FloatArray) -> float:
     r_diag = np.empty(3)
-    r_diag[0] = prm[k.P_R_X]
-    r_diag[1] = prm[k.P_R_Y]
-    r_diag[2] = prm[k.P_R_PSI]
+    r_diag[0] = prm[P_R_X]
+    r_diag[1] = prm[P_R_Y]
+    r_diag[2] = prm[P_R_PSI]
     for i in range(meas.shape[0]):
-        k.ekf_predict(x, P, 0.01, meas[i, 0], meas[i, 1], prm)
-        k.ekf_update_yaw_rate(x, P, meas[i, 2], prm[k.P_R_GYRO], prm[k.P_GATE_GYRO])
-        k.ekf_update_pose(x, P, meas[i, 3:6], r_diag, prm[k.P_GATE_POSE])
+        ekf_predict(x, P, 0.01, meas[i, 0], meas[i, 1], prm)
+        ekf_update_yaw_rate(x, P, meas[i, 2], prm[P_R_GYRO], prm[P_GATE_GYRO])
+        ekf_update_pose(x, P, meas[i, 3:6], r_diag, prm[P_GATE_POSE])
     return float(x[0])
 
 
 @njit
 def _event_loop(a: EkfArrays, meas: FloatArray, delay: int) -> float:
     for i in range(1, meas.shape[0]):
-        k.obs_imu(a, i * DT_NS, meas[i, 0], meas[i, 1], meas[i, 2])
+        obs_imu(a, i * DT_NS, meas[i, 0], meas[i, 1], meas[i, 2])
         j = i - delay
         if j >= 1:
-            k.obs_pose(a, j * DT_NS, meas[j, 3], meas[j, 4], meas[j, 5])
+            obs_pose(a, j * DT_NS, meas[j, 3], meas[j, 4], meas[j, 5])
     return float(a.x[0])
 
 
@@ -91,7 +102,7 @@ def main(argv: list[str] | None = None) -> int:
         a = cfg.arrays()
         x0 = np.zeros(9)
         x0[3] = 0.1
-        k.obs_init(a, 0, x0, cfg.initial_covariance())
+        obs_init(a, 0, x0, cfg.initial_covariance())
         return a
 
     # Compile (or load from cache) before timing.

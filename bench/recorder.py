@@ -43,16 +43,16 @@ from hil.core.samples import (
     ImuSample,
     ObstacleLayout,
     PoseSample,
-    Rectangle,
     ThrusterCommand,
     VelocityReference,
 )
+from hil.core.shapes import Rect
 
 
 def workload(seconds: float) -> list[Record]:
     """Return the records of a `seconds`-long run in arrival order."""
     out: list[Record] = [
-        ObstacleLayout(0, (Rectangle(0.0, 1.0, 2.0, 3.0), Rectangle(4.0, 5.0, 0.0, 1.0)))
+        ObstacleLayout(0, (Rect(0.0, 1.0, 2.0, 3.0), Rect(4.0, 5.0, 0.0, 1.0)))
     ]
     for i in range(int(seconds * 100)):
         t = i * 10_000_000

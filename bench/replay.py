@@ -30,8 +30,8 @@ from pathlib import Path
 def _record(scenario: str, seed: int, out: Path) -> Path:
     from hil.commands.record_suite import SuiteRun, record_run
     from hil.runs.sim_run import SimRunSpec, default_start
-    from hil.runtime.loop import LoopConfig
-    from hil.scenarios.scenario import load_scenario
+    from hil.runtime.settings import LoopConfig
+    from hil.scenarios import load_scenario
 
     x, y, psi = default_start(load_scenario(scenario))
     start = (x - 0.1 * (seed % 3), y + 0.25 * (seed % 2), psi)

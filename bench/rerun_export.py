@@ -39,7 +39,7 @@ class Row:
 
 def _make_run(out: Path) -> None:
     from hil.runs.sim_run import SimRunSpec, run_in_sim
-    from hil.runtime.loop import LoopConfig
+    from hil.runtime.settings import LoopConfig
 
     loop = LoopConfig(resynthesis_period_s=None, dock_hold_s=RUN_S, max_duration_s=RUN_S)
     summary = run_in_sim(SimRunSpec(scenario="paper", seed=0, out_dir=out, loop=loop))

@@ -33,7 +33,7 @@ from hil.controllers.symbolic import (
     tables_for,
 )
 from hil.controllers.symbolic.reference import dense_fixed_point, dense_tube_free
-from hil.scenarios.scenario import Scenario, load_scenario
+from hil.scenarios import Scenario, load_scenario
 
 
 def _layouts(scenario: Scenario, n: int, rng: np.random.Generator) -> list[SymbolicProblem]:

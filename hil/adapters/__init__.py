@@ -19,11 +19,11 @@ from hil.core.samples import (
     ImuSample,
     ObstacleLayout,
     PoseSample,
-    Rectangle,
     SampleError,
     ThrusterCommand,
     VelocityReference,
 )
+from hil.core.shapes import Rect
 
 __all__ = [
     "ArenaTransform",
@@ -35,7 +35,7 @@ __all__ = [
     "ObstacleSource",
     "PoseSample",
     "PoseSource",
-    "Rectangle",
+    "Rect",
     "SampleError",
     "ThrusterCommand",
     "ThrusterSink",

@@ -291,8 +291,8 @@ class RosObstacleSource:
             if not (math.isfinite(x) and math.isfinite(y)):
                 self.rejected += 1
                 return
-            moved.append(rect.shifted(x - (rect.x_min_m + rect.x_max_m) / 2,
-                                      y - (rect.y_min_m + rect.y_max_m) / 2))
+            moved.append(rect.translate(x - (rect.x_min_m + rect.x_max_m) / 2,
+                                        y - (rect.y_min_m + rect.y_max_m) / 2))
         shift = max((math.hypot(n.x_min_m - o.x_min_m, n.y_min_m - o.y_min_m)
                      for n, o in zip(moved, current, strict=True)), default=0.0)
         if shift >= self._min_move_m:

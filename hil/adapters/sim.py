@@ -22,11 +22,14 @@ from hil.core.samples import (
     ImuSample,
     ObstacleLayout,
     PoseSample,
-    Rectangle,
     ThrusterCommand,
 )
+from hil.core.shapes import Rect
+from hil.model.coefficients import ENTERPRISE_I, VesselParams
+from hil.model.dynamics import Integrator
+from hil.model.environment import EnvironmentalLoad
 from hil.model.thrusters import VOYAGER_THRUSTERS, ThrusterParams
-from hil.model.vessel import ENTERPRISE_I, EnvironmentalLoad, Integrator, Vessel, VesselParams
+from hil.model.vessel import Vessel
 from hil.sim.plant import N_PLANT, N_TRACE, P_ALPHA, P_ETA, TR_ETA, TR_NU, TR_NU_DOT, plant_advance
 from hil.sim.sensors import ImuSensorConfig, PoseSensorConfig, SimulatedImu, SimulatedPoseSensor
 
@@ -98,7 +101,7 @@ class SimConfig:
     pose: PoseSensorConfig = field(default_factory=PoseSensorConfig)
     imu: ImuSensorConfig = field(default_factory=ImuSensorConfig)
     load: EnvironmentalLoad = field(default_factory=EnvironmentalLoad)
-    obstacles: tuple[Rectangle, ...] = ()
+    obstacles: tuple[Rect, ...] = ()
     motions: tuple[ObstacleMotion, ...] = ()
     obstacle_report_period_s: float = 1.0
     thruster_outages: tuple[ThrusterOutage, ...] = ()
@@ -164,7 +167,7 @@ class SimObstacleSource:
         obstacles = list(cfg.obstacles)
         for motion in cfg.motions:
             dx, dy = motion.offset_m(t_ns / NS_PER_S)
-            obstacles[motion.index] = cfg.obstacles[motion.index].shifted(dx, dy)
+            obstacles[motion.index] = cfg.obstacles[motion.index].translate(dx, dy)
         if tuple(obstacles) != self._layout.obstacles:
             self._layout = ObstacleLayout(t_ns, tuple(obstacles))
         return self._layout

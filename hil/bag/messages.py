@@ -46,11 +46,12 @@ from hil.core.samples import (
     ImuSample,
     ObstacleLayout,
     PoseSample,
-    Rectangle,
     SampleError,
     ThrusterCommand,
     VelocityReference,
+    obstacle_rect,
 )
+from hil.core.shapes import Rect
 
 Record = (
     PoseSample
@@ -266,7 +267,7 @@ def decision_msg(record: Decision) -> Any:
     )
 
 
-def _rectangle_msg(rect: Rectangle) -> Any:
+def _rectangle_msg(rect: Rect) -> Any:
     # Counter-clockwise from (x_min, y_min); read back by _rectangle.
     cls = ts.typestore().types[ts.POLYGON_2D]
     xs = np.array([rect.x_min_m, rect.x_max_m, rect.x_max_m, rect.x_min_m])
@@ -445,7 +446,7 @@ def _decision(msg: Any) -> Decision:
     )
 
 
-def _rectangle(msg: Any) -> Rectangle:
+def _rectangle(msg: Any) -> Rect:
     xs = np.asarray(msg.x, dtype=np.float64)
     ys = np.asarray(msg.y, dtype=np.float64)
     if xs.shape != (4,) or ys.shape != (4,):
@@ -453,7 +454,7 @@ def _rectangle(msg: Any) -> Rectangle:
             f"obstacle polygon {msg.name!r} has {xs.size} x and {ys.size} y values, "
             "not the 4 corners of a rectangle"
         )
-    rect = Rectangle(float(xs.min()), float(xs.max()), float(ys.min()), float(ys.max()))
+    rect = obstacle_rect(float(xs.min()), float(xs.max()), float(ys.min()), float(ys.max()))
     corners_x = set(xs.tolist()) <= {rect.x_min_m, rect.x_max_m}
     corners_y = set(ys.tolist()) <= {rect.y_min_m, rect.y_max_m}
     if not (corners_x and corners_y):

@@ -32,7 +32,8 @@ from hil.bag.reader import BagInfo, BagReader, SkippedMessage
 from hil.bag.recorder import RunInfo
 from hil.bag.storage import RawMessage
 from hil.core.records import Decision, Event
-from hil.core.samples import ObstacleLayout, Rectangle
+from hil.core.samples import ObstacleLayout
+from hil.core.shapes import Rect
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -84,7 +85,7 @@ class Layout:
     t_ns: int
     real: tuple[FloatArray, ...]
     inflated: tuple[FloatArray, ...]
-    rectangles: tuple[Rectangle, ...]
+    rectangles: tuple[Rect, ...]
 
     def as_obstacle_layout(self) -> ObstacleLayout:
         """Return the layout as the adapters' record."""

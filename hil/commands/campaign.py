@@ -46,8 +46,8 @@ def run(args: argparse.Namespace) -> int:
     )
     from hil.runs.sim_run import SimRunSpec, synthesizer_for
     from hil.runtime.assembly import LayoutSolver, layout_from_scenario
-    from hil.runtime.loop import LoopConfig
-    from hil.scenarios.scenario import ScenarioError, load_scenario
+    from hil.runtime.settings import LoopConfig
+    from hil.scenarios import ScenarioError, load_scenario
 
     if args.n < 1 or args.workers < 1:
         print("hil campaign: -n and --workers must be at least 1", file=sys.stderr)

@@ -58,7 +58,7 @@ def suite() -> tuple[SuiteRun, ...]:
     """
     from hil.adapters.sim import ObstacleMotion, ThrusterOutage
     from hil.runs.sim_run import SimRunSpec
-    from hil.runtime.loop import LoopConfig
+    from hil.runtime.settings import LoopConfig
 
     loop = LoopConfig(max_duration_s=240.0)
     return (
@@ -137,7 +137,7 @@ def record_run(run: SuiteRun, out_dir: Path) -> Path:
     from hil.bag.recorder import RecorderConfig, RunInfo
     from hil.runs.sim_run import run_in_sim, scenario_hash
     from hil.runtime.trace import MemoryLog
-    from hil.scenarios.scenario import load_scenario
+    from hil.scenarios import load_scenario
 
     log = MemoryLog()
     run_in_sim(replace(run.spec, out_dir=None), log=log)

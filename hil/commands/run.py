@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from hil.runs.sim_run import LiveView
     from hil.runtime.stack import RunLog
-    from hil.scenarios.scenario import Scenario
+    from hil.scenarios import Scenario
 
 HELP = "dock the vessel in simulation (or over ROS 2), record the run and summarize it"
 
@@ -70,8 +70,8 @@ def run(args: argparse.Namespace) -> int:
     from hil.bag.errors import ReplayError
     from hil.controllers.symbolic import SymbolicError
     from hil.runs.sim_run import SimRunSpec, run_in_sim
-    from hil.runtime.loop import LoopConfig
-    from hil.scenarios.scenario import ScenarioError, load_scenario
+    from hil.runtime.settings import LoopConfig
+    from hil.scenarios import ScenarioError, load_scenario
 
     console = Console(stderr=args.json)
     try:

@@ -37,7 +37,7 @@ def run(args: argparse.Namespace) -> int:
     from hil.runs.ros_vessel import SimVesselNode
     from hil.runs.sim_run import default_start
     from hil.runtime.assembly import layout_from_scenario
-    from hil.scenarios.scenario import ScenarioError, load_scenario
+    from hil.scenarios import ScenarioError, load_scenario
 
     try:
         scenario = load_scenario(args.scenario)

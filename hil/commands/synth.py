@@ -48,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
         Synthesizer,
         tables_for,
     )
-    from hil.scenarios.scenario import ScenarioError, load_scenario
+    from hil.scenarios import ScenarioError, load_scenario
 
     try:
         scenario = load_scenario(args.scenario)

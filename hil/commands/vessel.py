@@ -31,7 +31,7 @@ def run(args: argparse.Namespace) -> int:
     from hil.bag.errors import ReplayError
     from hil.core.config import ConfigError
     from hil.runs.vessel_run import VesselConfig, run_on_ros
-    from hil.scenarios.scenario import ScenarioError
+    from hil.scenarios import ScenarioError
 
     try:
         config = VesselConfig.load(args.config)

@@ -25,3 +25,15 @@ class ObserverInputError(ObserverError, ValueError):
 
 class ObserverNotInitializedError(ObserverError, RuntimeError):
     """The estimate was asked for before any pose (or explicit start) initialized the filter."""
+
+
+class AllocationError(ControllerError, ValueError):
+    """Base class of thrust-allocation errors."""
+
+
+class AllocationConfigError(AllocationError):
+    """An allocator setting or a demand of the wrong shape."""
+
+
+class NonFiniteDemandError(AllocationError):
+    """A force demand that holds NaN or inf."""

@@ -15,35 +15,77 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hil.controllers import observer_kernels as k
 from hil.controllers.errors import (
     ObserverConfigError,
     ObserverInputError,
     ObserverNotInitializedError,
 )
-from hil.controllers.observer_kernels import EkfArrays, FloatArray
+from hil.controllers.observer_arrays import (
+    C_POSE_FUSED,
+    S_ABSURD,
+    S_DUPLICATE,
+    S_FUSED,
+    S_GATED,
+    S_NONFINITE,
+    S_NOT_INITIALIZED,
+    S_RESET,
+    S_TOO_OLD,
+    EkfArrays,
+    allocate_arrays,
+)
+from hil.controllers.observer_kernels import obs_imu, obs_init, obs_pose, obs_predicted, obs_time_ns
+from hil.controllers.observer_math import (
+    I_BAX,
+    I_BR,
+    I_R,
+    I_U,
+    N_PARAMS,
+    N_STATE,
+    P_ACCEL_HOLD,
+    P_GATE_GYRO,
+    P_GATE_POSE,
+    P_GATE_RESET,
+    P_MAX_ACC,
+    P_MAX_DELAY,
+    P_MAX_POS,
+    P_MAX_RATE,
+    P_Q_BA,
+    P_Q_BR,
+    P_Q_R,
+    P_Q_UV,
+    P_R_GYRO,
+    P_R_PSI,
+    P_R_X,
+    P_R_Y,
+    P_RESTART_VAR_BA,
+    P_RESTART_VAR_BR,
+    P_RESTART_VAR_R,
+    P_RESTART_VAR_UV,
+    FloatArray,
+)
+from hil.controllers.observer_ring import M_INIT
 from hil.core.samples import Frame, ImuSample, PoseSample, SampleError
 
 __all__ = [
     "Ekf",
     "ObserverConfig",
     "ObserverCounters",
+    "ObserverEstimate",
     "ObserverStatus",
-    "StateEstimate",
 ]
 
 
 class ObserverStatus(enum.IntEnum):
     """What became of one sample (the kernels' ``S_*`` codes)."""
 
-    FUSED = k.S_FUSED
-    NONFINITE = k.S_NONFINITE
-    ABSURD = k.S_ABSURD
-    GATED = k.S_GATED
-    TOO_OLD = k.S_TOO_OLD
-    DUPLICATE = k.S_DUPLICATE
-    NOT_INITIALIZED = k.S_NOT_INITIALIZED
-    RESET = k.S_RESET
+    FUSED = S_FUSED
+    NONFINITE = S_NONFINITE
+    ABSURD = S_ABSURD
+    GATED = S_GATED
+    TOO_OLD = S_TOO_OLD
+    DUPLICATE = S_DUPLICATE
+    NOT_INITIALIZED = S_NOT_INITIALIZED
+    RESET = S_RESET
 
 
 @dataclass(frozen=True, slots=True)
@@ -162,31 +204,31 @@ class ObserverConfig:
         so that one IMU period adds accel_std^2 dt^2 to the velocity variance, the
         variance a held noisy sample puts there; the walks square to (unit)^2/s.
         """
-        p = np.zeros(k.N_PARAMS)
-        p[k.P_Q_UV] = (
+        p = np.zeros(N_PARAMS)
+        p[P_Q_UV] = (
             self.accel_std_mps2**2 / self.imu_rate_hz + self.velocity_walk_mps_per_sqrt_s**2
         )
-        p[k.P_Q_R] = self.yaw_rate_walk_radps_per_sqrt_s**2
+        p[P_Q_R] = self.yaw_rate_walk_radps_per_sqrt_s**2
         if self.estimate_bias:
-            p[k.P_Q_BA] = self.accel_bias_walk_mps2_per_sqrt_s**2
-            p[k.P_Q_BR] = self.gyro_bias_walk_radps_per_sqrt_s**2
-        p[k.P_R_X] = self.pose_std_m**2
-        p[k.P_R_Y] = self.pose_std_m**2
-        p[k.P_R_PSI] = self.pose_yaw_std_rad**2
-        p[k.P_R_GYRO] = self.gyro_std_radps**2
-        p[k.P_GATE_POSE] = self.gate_pose_chi2
-        p[k.P_GATE_GYRO] = self.gate_gyro_chi2
-        p[k.P_MAX_POS] = self.max_abs_position_m
-        p[k.P_MAX_ACC] = self.max_abs_accel_mps2
-        p[k.P_MAX_RATE] = self.max_abs_yaw_rate_radps
-        p[k.P_MAX_DELAY] = self.max_delay_s
-        p[k.P_GATE_RESET] = float(self.reset_after_gated_poses)
+            p[P_Q_BA] = self.accel_bias_walk_mps2_per_sqrt_s**2
+            p[P_Q_BR] = self.gyro_bias_walk_radps_per_sqrt_s**2
+        p[P_R_X] = self.pose_std_m**2
+        p[P_R_Y] = self.pose_std_m**2
+        p[P_R_PSI] = self.pose_yaw_std_rad**2
+        p[P_R_GYRO] = self.gyro_std_radps**2
+        p[P_GATE_POSE] = self.gate_pose_chi2
+        p[P_GATE_GYRO] = self.gate_gyro_chi2
+        p[P_MAX_POS] = self.max_abs_position_m
+        p[P_MAX_ACC] = self.max_abs_accel_mps2
+        p[P_MAX_RATE] = self.max_abs_yaw_rate_radps
+        p[P_MAX_DELAY] = self.max_delay_s
+        p[P_GATE_RESET] = float(self.reset_after_gated_poses)
         P0 = np.diag(self.initial_covariance())
-        p[k.P_RESTART_VAR_UV] = P0[k.I_U]
-        p[k.P_RESTART_VAR_R] = P0[k.I_R]
-        p[k.P_RESTART_VAR_BA] = P0[k.I_BAX]
-        p[k.P_RESTART_VAR_BR] = P0[k.I_BR]
-        p[k.P_ACCEL_HOLD] = self.accel_hold_s
+        p[P_RESTART_VAR_UV] = P0[I_U]
+        p[P_RESTART_VAR_R] = P0[I_R]
+        p[P_RESTART_VAR_BA] = P0[I_BAX]
+        p[P_RESTART_VAR_BR] = P0[I_BR]
+        p[P_ACCEL_HOLD] = self.accel_hold_s
         return p
 
     def initial_covariance(self) -> FloatArray:
@@ -210,12 +252,15 @@ class ObserverConfig:
 
     def arrays(self) -> EkfArrays:
         """Allocate the kernels' arrays for this configuration (not yet initialized)."""
-        return k.allocate_arrays(self.params(), self.history_len)
+        return allocate_arrays(self.params(), self.history_len)
 
 
 @dataclass(frozen=True, slots=True)
-class StateEstimate:
-    """The observer's estimate at one time.
+class ObserverEstimate:
+    """The observer's estimate at one time, with its covariance and the IMU biases.
+
+    Not the recorded :class:`hil.core.records.StateEstimate` (pose and velocity
+    only, as the bag stores it); the runtime turns one into the other.
 
     Attributes:
         t_ns: Filter time (ns): the stamp of the newest sample fused.
@@ -324,12 +369,12 @@ class Ekf:
     @property
     def initialized(self) -> bool:
         """Return whether the filter has started."""
-        return bool(self._a.meta[k.M_INIT])
+        return bool(self._a.meta[M_INIT])
 
     @property
     def time_ns(self) -> int | None:
         """Return the filter time (ns), or None before it starts."""
-        return int(k.obs_time_ns(self._a)) if self.initialized else None
+        return int(obs_time_ns(self._a)) if self.initialized else None
 
     def initialize(
         self,
@@ -349,14 +394,14 @@ class Ekf:
         Raises:
             ObserverInputError: A shape is wrong or a value is not finite.
         """
-        x0 = np.zeros(k.N_STATE)
+        x0 = np.zeros(N_STATE)
         x0[0:3] = _vector("eta", eta, 3)
         if nu is not None:
             x0[3:6] = _vector("nu", nu, 3)
         P0 = self._config.initial_covariance() if covariance is None else np.asarray(covariance)
-        if P0.shape != (k.N_STATE, k.N_STATE) or not np.all(np.isfinite(P0)):
+        if P0.shape != (N_STATE, N_STATE) or not np.all(np.isfinite(P0)):
             raise ObserverInputError(f"covariance must be finite (9, 9), got {P0!r}")
-        k.obs_init(self._a, int(t_ns), x0, np.array(P0, dtype=np.float64))
+        obs_init(self._a, int(t_ns), x0, np.array(P0, dtype=np.float64))
 
     def process_pose(self, sample: PoseSample) -> ObserverStatus:
         """Fuse a pose sample (arena frame); start the filter with it if needed.
@@ -383,19 +428,19 @@ class Ekf:
             if abs(x_m) <= limit and abs(y_m) <= limit:
                 self.initialize(t_ns, np.array([x_m, y_m, yaw_rad]))
                 # The start itself is the fused pose.
-                self._a.counters[k.C_POSE_FUSED] += 1
+                self._a.counters[C_POSE_FUSED] += 1
                 return ObserverStatus.FUSED
-        return ObserverStatus(k.obs_pose(self._a, int(t_ns), x_m, y_m, yaw_rad))
+        return ObserverStatus(obs_pose(self._a, int(t_ns), x_m, y_m, yaw_rad))
 
     def fuse_imu(
         self, t_ns: int, accel_x_mps2: float, accel_y_mps2: float, yaw_rate_radps: float
     ) -> ObserverStatus:
         """Take raw IMU values (possibly NaN, absurd, late); see ``obs_imu``."""
         return ObserverStatus(
-            k.obs_imu(self._a, int(t_ns), accel_x_mps2, accel_y_mps2, yaw_rate_radps)
+            obs_imu(self._a, int(t_ns), accel_x_mps2, accel_y_mps2, yaw_rate_radps)
         )
 
-    def estimate(self) -> StateEstimate:
+    def estimate(self) -> ObserverEstimate:
         """Return the estimate at the filter time (copies).
 
         Raises:
@@ -403,9 +448,9 @@ class Ekf:
         """
         if not self.initialized:
             raise ObserverNotInitializedError("no pose has been fused yet")
-        return _estimate(int(k.obs_time_ns(self._a)), self._a.x.copy(), self._a.P.copy())
+        return _estimate(int(obs_time_ns(self._a)), self._a.x.copy(), self._a.P.copy())
 
-    def predicted(self, t_ns: int) -> StateEstimate:
+    def predicted(self, t_ns: int) -> ObserverEstimate:
         """Return the estimate extrapolated to `t_ns` (>= the filter time); change nothing.
 
         Raises:
@@ -414,9 +459,9 @@ class Ekf:
         """
         if not self.initialized:
             raise ObserverNotInitializedError("no pose has been fused yet")
-        x = np.empty(k.N_STATE)
-        P = np.empty((k.N_STATE, k.N_STATE))
-        if not k.obs_predicted(self._a, int(t_ns), x, P):
+        x = np.empty(N_STATE)
+        P = np.empty((N_STATE, N_STATE))
+        if not obs_predicted(self._a, int(t_ns), x, P):
             raise ObserverInputError(
                 f"cannot predict back to t_ns={t_ns!r}: the filter is at {self.time_ns!r}"
             )
@@ -427,8 +472,8 @@ class Ekf:
         return ObserverCounters(*(int(v) for v in self._a.counters))
 
 
-def _estimate(t_ns: int, x: FloatArray, P: FloatArray) -> StateEstimate:
-    return StateEstimate(
+def _estimate(t_ns: int, x: FloatArray, P: FloatArray) -> ObserverEstimate:
+    return ObserverEstimate(
         t_ns=t_ns,
         eta=x[0:3],
         nu=x[3:6],

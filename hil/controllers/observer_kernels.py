@@ -1,24 +1,49 @@
 """EKF event kernels: samples in any order, through a ring buffer of past priors.
 
 :func:`obs_init`, :func:`obs_imu` and :func:`obs_pose` work on an
-:class:`EkfArrays` bundle: the current estimate plus a ring buffer of the prior,
-the held accelerometer input and the measurements at each past sample time, so a
-late or out-of-order sample is fused at its own time stamp and the filter is
-re-run forward to the newest time (robot_localization's ``smooth_lagged_data``).
-They return an ``S_*`` status code and count every outcome in ``counters``.
-The math (predict, updates, state layout, parameter vector) is in
-:mod:`hil.controllers.observer_math`, the ring bookkeeping in
-:mod:`hil.controllers.observer_ring`; the names a caller needs are re-exported
-here, so a compiled caller imports this module only.
+:class:`~hil.controllers.observer_arrays.EkfArrays` bundle: the current estimate plus
+a ring buffer of the prior, the held accelerometer input and the measurements at each
+past sample time, so a late or out-of-order sample is fused at its own time stamp and
+the filter is re-run forward to the newest time (robot_localization's
+``smooth_lagged_data``). They return an ``S_*`` status code and count every outcome in
+``counters`` (:mod:`hil.controllers.observer_arrays`). The math (predict, updates,
+state layout, parameter vector) is in :mod:`hil.controllers.observer_math`, the ring
+bookkeeping in :mod:`hil.controllers.observer_ring`.
 """
 
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
 
 import numpy as np
 
+from hil.controllers.observer_arrays import (
+    C_GYRO_GATED,
+    C_IMU_ABSURD,
+    C_IMU_DUPLICATE,
+    C_IMU_FUSED,
+    C_IMU_LATE,
+    C_IMU_NONFINITE,
+    C_IMU_TOO_OLD,
+    C_NOT_INITIALIZED,
+    C_POSE_ABSURD,
+    C_POSE_DUPLICATE,
+    C_POSE_FUSED,
+    C_POSE_GATED,
+    C_POSE_LATE,
+    C_POSE_NONFINITE,
+    C_POSE_RESET,
+    C_POSE_TOO_OLD,
+    S_ABSURD,
+    S_DUPLICATE,
+    S_FUSED,
+    S_GATED,
+    S_NONFINITE,
+    S_NOT_INITIALIZED,
+    S_RESET,
+    S_TOO_OLD,
+    EkfArrays,
+)
 from hil.controllers.observer_math import (
     I_BAX,
     I_BAY,
@@ -29,20 +54,13 @@ from hil.controllers.observer_math import (
     I_V,
     I_X,
     I_Y,
-    N_PARAMS,
     N_STATE,
-    P_ACCEL_HOLD,
     P_GATE_GYRO,
     P_GATE_POSE,
     P_GATE_RESET,
     P_MAX_ACC,
-    P_MAX_DELAY,
     P_MAX_POS,
     P_MAX_RATE,
-    P_Q_BA,
-    P_Q_BR,
-    P_Q_R,
-    P_Q_UV,
     P_R_GYRO,
     P_R_PSI,
     P_R_X,
@@ -54,7 +72,6 @@ from hil.controllers.observer_math import (
     FloatArray,
     _update_pose,
     ekf_predict,
-    ekf_update_pose,
     ekf_update_yaw_rate,
 )
 from hil.controllers.observer_ring import (
@@ -86,172 +103,7 @@ from hil.controllers.observer_ring import (
 from hil.core.geometry import wrap_angle
 from hil.core.jit import njit
 
-__all__ = [
-    "C_GYRO_GATED",
-    "C_IMU_ABSURD",
-    "C_IMU_DUPLICATE",
-    "C_IMU_FUSED",
-    "C_IMU_LATE",
-    "C_IMU_NONFINITE",
-    "C_IMU_TOO_OLD",
-    "C_NOT_INITIALIZED",
-    "C_POSE_ABSURD",
-    "C_POSE_DUPLICATE",
-    "C_POSE_FUSED",
-    "C_POSE_GATED",
-    "C_POSE_LATE",
-    "C_POSE_NONFINITE",
-    "C_POSE_RESET",
-    "C_POSE_TOO_OLD",
-    "I_BAX",
-    "I_BAY",
-    "I_BR",
-    "I_PSI",
-    "I_R",
-    "I_U",
-    "I_V",
-    "I_X",
-    "I_Y",
-    "M_COUNT",
-    "M_GATED_RUN",
-    "M_INIT",
-    "M_START",
-    "N_COUNTERS",
-    "N_PARAMS",
-    "N_STATE",
-    "P_ACCEL_HOLD",
-    "P_GATE_GYRO",
-    "P_GATE_POSE",
-    "P_GATE_RESET",
-    "P_MAX_ACC",
-    "P_MAX_DELAY",
-    "P_MAX_POS",
-    "P_MAX_RATE",
-    "P_Q_BA",
-    "P_Q_BR",
-    "P_Q_R",
-    "P_Q_UV",
-    "P_RESTART_VAR_BA",
-    "P_RESTART_VAR_BR",
-    "P_RESTART_VAR_R",
-    "P_RESTART_VAR_UV",
-    "P_R_GYRO",
-    "P_R_PSI",
-    "P_R_X",
-    "P_R_Y",
-    "S_ABSURD",
-    "S_DUPLICATE",
-    "S_FUSED",
-    "S_GATED",
-    "S_NONFINITE",
-    "S_NOT_INITIALIZED",
-    "S_RESET",
-    "S_TOO_OLD",
-    "U_AX",
-    "U_AY",
-    "U_OWN",
-    "Z_PSI",
-    "Z_R",
-    "Z_X",
-    "Z_Y",
-    "EkfArrays",
-    "FloatArray",
-    "IntArray",
-    "allocate_arrays",
-    "ekf_predict",
-    "ekf_update_pose",
-    "ekf_update_yaw_rate",
-    "obs_imu",
-    "obs_init",
-    "obs_pose",
-    "obs_predicted",
-    "obs_time_ns",
-]
-
-# Counter indices (counters array, int64).
-C_POSE_FUSED = 0
-C_POSE_LATE = 1  # fused although stamped before the filter time
-C_POSE_NONFINITE = 2
-C_POSE_ABSURD = 3
-C_POSE_GATED = 4
-C_POSE_TOO_OLD = 5
-C_POSE_DUPLICATE = 6
-C_IMU_FUSED = 7
-C_IMU_LATE = 8
-C_IMU_NONFINITE = 9
-C_IMU_ABSURD = 10
-C_GYRO_GATED = 11
-C_IMU_TOO_OLD = 12
-C_IMU_DUPLICATE = 13
-C_NOT_INITIALIZED = 14
-C_POSE_RESET = 15  # filter restarted after P_GATE_RESET gated poses in a row
-N_COUNTERS = 16
-
-# Status codes returned by the event kernels.
-S_FUSED = 0
-S_NONFINITE = 1
-S_ABSURD = 2
-S_GATED = 3
-S_TOO_OLD = 4
-S_DUPLICATE = 5
-S_NOT_INITIALIZED = 6
-S_RESET = 7  # the pose restarted the filter (see _gated)
-
-
-class EkfArrays(NamedTuple):
-    """Every array the event kernels read or write; numba passes it as a tuple.
-
-    Attributes:
-        x: Posterior state at the filter time, shape (9,), ``I_*`` indexing.
-        P: Posterior covariance, shape (9, 9).
-        hist_t_ns: Time stamp of each ring slot (ns), shape (K,), int64.
-        hist_x: Prior state at each slot time (before its measurements), (K, 9).
-        hist_cov: Prior covariance at each slot time, (K, 9, 9).
-        hist_u: Accelerometer input held from each slot to the next, (K, 3):
-            (f_x, f_y) in m/s^2 and an "own sample" flag (1.0 or 0.0).
-        hist_z: Measurements stamped at each slot, (K, 4): pose (x, y, psi) and
-            yaw rate; NaN where the slot has none.
-        meta: Bookkeeping, (4,), int64: oldest slot, slot count, initialized,
-            poses gated in a row.
-        counters: Sample counters, (N_COUNTERS,), int64, ``C_*`` indexing.
-        params: Noise, gates and limits, (N_PARAMS,), ``P_*`` indexing.
-    """
-
-    x: FloatArray
-    P: FloatArray
-    hist_t_ns: IntArray
-    hist_x: FloatArray
-    hist_cov: FloatArray
-    hist_u: FloatArray
-    hist_z: FloatArray
-    meta: IntArray
-    counters: IntArray
-    params: FloatArray
-
-
-def allocate_arrays(params: FloatArray, history_len: int) -> EkfArrays:
-    """Allocate an uninitialized :class:`EkfArrays` with `history_len` ring slots.
-
-    Args:
-        params: Parameter vector, shape (N_PARAMS,) (copied).
-        history_len: Ring slots K (>= 2); each sample time takes one slot.
-
-    Returns:
-        Zeroed arrays; call :func:`obs_init` before feeding samples.
-    """
-    k = int(history_len)
-    return EkfArrays(
-        x=np.zeros(N_STATE),
-        P=np.zeros((N_STATE, N_STATE)),
-        hist_t_ns=np.zeros(k, dtype=np.int64),
-        hist_x=np.zeros((k, N_STATE)),
-        hist_cov=np.zeros((k, N_STATE, N_STATE)),
-        hist_u=np.zeros((k, 3)),
-        hist_z=np.full((k, 4), np.nan),
-        meta=np.zeros(4, dtype=np.int64),
-        counters=np.zeros(N_COUNTERS, dtype=np.int64),
-        params=np.array(params, dtype=np.float64, copy=True),
-    )
+__all__ = ["obs_imu", "obs_init", "obs_pose", "obs_predicted", "obs_time_ns"]
 
 
 @njit

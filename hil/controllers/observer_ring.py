@@ -5,7 +5,7 @@ before its measurements, the accelerometer input held from it to the next slot,
 and the measurements stamped there. Slots are kept in time order in a ring of
 K; a late sample opens (or joins) the slot of its stamp and the filter is re-run
 forward from there with :func:`rerun`. The arrays, passed one by one (passing
-the whole :class:`~hil.controllers.observer_kernels.EkfArrays` tuple to every
+the whole :class:`~hil.controllers.observer_arrays.EkfArrays` tuple to every
 helper costs ~70 ns a call):
 
 * ``ht`` (K,) int64 stamps (ns); ``hx`` (K, 9) priors; ``hc`` (K, 9, 9) their

@@ -9,7 +9,7 @@ The law (acting in acceleration units, scaled by the inertia matrix):
 
 where e' = 0 while the achieved force misses the demand by more than a tolerance
 (conditional integration), else e; n(nu) = C(nu) nu + D(nu) nu is the force that holds nu
-steady (the vessel model's own :func:`hil.model.vessel.hydro_force` kernel), tau_max
+steady (the vessel model's own :func:`hil.model.dynamics.hydro_force` kernel), tau_max
 the thrust envelope per axis, tau_ach the force actually achieved (Astrom & Hagglund
 2006, Sec. 3.5, back-calculation and conditional integration; Fossen 2021, Sec. 12.2,
 feed-forward of the model). The derivative acts on the measurement through a
@@ -28,10 +28,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from hil.controllers.allocation import axis_force_limits, matvec
+from hil.controllers.allocation_kernels import matvec
+from hil.controllers.envelope import axis_force_limits
 from hil.core.jit import njit
+from hil.model.coefficients import ENTERPRISE_I, VesselParams
+from hil.model.dynamics import hydro_force
 from hil.model.thrusters import VOYAGER_THRUSTERS, ThrusterParams
-from hil.model.vessel import ENTERPRISE_I, VesselParams, hydro_force
 
 FloatArray = NDArray[np.float64]
 

@@ -2,7 +2,8 @@
 
 Times are integer nanoseconds (`t_ns`) on the run's clock; lengths in metres,
 angles in radians, velocities in m/s and rad/s. Every pose carries its frame so
-that a lab NED pose cannot be mistaken for an arena pose.
+that a lab NED pose cannot be mistaken for an arena pose. Obstacle rectangles are
+:class:`hil.core.shapes.Rect`, the shape scenarios use too.
 """
 
 from __future__ import annotations
@@ -13,6 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+
+from hil.core.shapes import Rect
 
 FloatArray = NDArray[np.float64]
 
@@ -145,32 +148,21 @@ class ThrusterCommand:
         return ThrusterCommand(t_ns, 0.0, 0.0, 0.0, math.pi / 2, -math.pi / 2)
 
 
-@dataclass(frozen=True, slots=True)
-class Rectangle:
-    """An axis-aligned rectangle in the arena frame (m).
+def obstacle_rect(x_min_m: float, x_max_m: float, y_min_m: float, y_max_m: float) -> Rect:
+    """Return the obstacle rectangle with these bounds (m), refusing what a layout refuses.
 
-    Attributes:
-        x_min_m: Lower x bound (m).
-        x_max_m: Upper x bound (m).
-        y_min_m: Lower y bound (m).
-        y_max_m: Upper y bound (m).
+    Raises:
+        SampleError: A bound is not finite or the rectangle has no area.
     """
+    rect = Rect(x_min_m, x_max_m, y_min_m, y_max_m)
+    _require_obstacle(rect)
+    return rect
 
-    x_min_m: float
-    x_max_m: float
-    y_min_m: float
-    y_max_m: float
 
-    def __post_init__(self) -> None:
-        _require_finite("rectangle", self.x_min_m, self.x_max_m, self.y_min_m, self.y_max_m)
-        if not (self.x_min_m < self.x_max_m and self.y_min_m < self.y_max_m):
-            raise SampleError(f"rectangle has empty extent: {self!r}")
-
-    def shifted(self, dx_m: float, dy_m: float) -> Rectangle:
-        """Return this rectangle moved by (dx, dy) metres."""
-        return Rectangle(
-            self.x_min_m + dx_m, self.x_max_m + dx_m, self.y_min_m + dy_m, self.y_max_m + dy_m
-        )
+def _require_obstacle(rect: Rect) -> None:
+    _require_finite("rectangle", rect.x_min_m, rect.x_max_m, rect.y_min_m, rect.y_max_m)
+    if not (rect.x_min_m < rect.x_max_m and rect.y_min_m < rect.y_max_m):
+        raise SampleError(f"rectangle has empty extent: {rect!r}")
 
 
 @dataclass(frozen=True, slots=True)
@@ -179,8 +171,12 @@ class ObstacleLayout:
 
     Attributes:
         t_ns: Time the layout was observed (ns).
-        obstacles: The obstacles as arena-frame rectangles.
+        obstacles: The obstacles as arena-frame rectangles, each finite with area.
     """
 
     t_ns: int
-    obstacles: tuple[Rectangle, ...]
+    obstacles: tuple[Rect, ...]
+
+    def __post_init__(self) -> None:
+        for rect in self.obstacles:
+            _require_obstacle(rect)

@@ -1,7 +1,7 @@
 """Environmental load b(t) on the vessel: constant + first-order Gauss-Markov + sinusoid.
 
 The load enters the model as ``M nu_dot + C(nu) nu + D(nu) nu = tau + b``
-(:mod:`hil.model.vessel`); series are time-major (N, 3) over (X N, Y N, N N m).
+(:mod:`hil.model.dynamics`); series are time-major (N, 3) over (X N, Y N, N N m).
 """
 
 from __future__ import annotations

@@ -44,7 +44,8 @@ from hil.bag.errors import ReplayError
 from hil.controllers.symbolic import NoWinningSetError, SymbolicError, Synthesizer
 from hil.core.geometry import wrap_angles
 from hil.core.records import Decision
-from hil.core.samples import ObstacleLayout, Rectangle, ThrusterCommand
+from hil.core.samples import ObstacleLayout, ThrusterCommand
+from hil.core.shapes import Rect
 from hil.replay.regression import Check, Finding, LogReport, Status, time_s
 from hil.runs.sim_run import (
     SimRunSpec,
@@ -56,11 +57,12 @@ from hil.runs.sim_run import (
 )
 from hil.runs.summary import PAPER_TRACKING_ERROR
 from hil.runtime.assembly import LayoutSolver, SymbolicAdapter, select_index
-from hil.runtime.loop import LoopConfig, Mode, World
+from hil.runtime.loop import Mode, World
 from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer
+from hil.runtime.settings import LoopConfig
 from hil.runtime.stack import SymbolicController
 from hil.runtime.trace import MemoryLog
-from hil.scenarios.scenario import Scenario, ScenarioError, load_scenario
+from hil.scenarios import Scenario, ScenarioError, load_scenario
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -195,7 +197,7 @@ class ControllerCache:
     def __init__(self, scenario: Scenario, cache_dir: Path | None = None) -> None:
         self.scenario = scenario
         self._solver = LayoutSolver(scenario, synthesizer_for(scenario, cache_dir))
-        self._done: dict[tuple[Rectangle, ...], SymbolicAdapter | NoWinningSetError] = {}
+        self._done: dict[tuple[Rect, ...], SymbolicAdapter | NoWinningSetError] = {}
         self.syntheses = 0
 
     @property

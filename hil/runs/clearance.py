@@ -11,7 +11,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from hil.scenarios.scenario import Scenario, Shape
+from hil.core.shapes import Shape
+from hil.scenarios import Scenario
 
 FloatArray = NDArray[np.float64]
 

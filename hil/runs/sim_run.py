@@ -35,11 +35,13 @@ from hil.runtime.assembly import (
     layout_from_scenario,
     select_index,
 )
-from hil.runtime.loop import LoopConfig, RunStats, Runtime, World
+from hil.runtime.loop import Runtime, World
 from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer
+from hil.runtime.settings import LoopConfig
 from hil.runtime.stack import RunLog, SymbolicController
+from hil.runtime.stats import RunStats
 from hil.runtime.trace import MemoryLog
-from hil.scenarios.scenario import Scenario, load_scenario
+from hil.scenarios import Scenario, load_scenario
 from hil.sim.plant import TR_ETA, TR_NU
 from hil.sim.sensors import PoseSensorConfig
 

@@ -19,8 +19,8 @@ from rich.console import Console
 from rich.table import Table
 
 from hil.runs.clearance import hull_clearance_series
-from hil.runtime.loop import RunStats
-from hil.scenarios.scenario import Scenario
+from hil.runtime.stats import RunStats
+from hil.scenarios import Scenario
 
 FloatArray = NDArray[np.float64]
 

@@ -25,9 +25,10 @@ from hil.core.config import from_table, load_toml
 from hil.runs.sim_run import build_runtime, scenario_hash, synthesizer_for
 from hil.runs.summary import RunSummary, summarize_run
 from hil.runtime.assembly import layout_from_scenario, warm_up_kernels
-from hil.runtime.loop import LoopConfig, Runtime, World
+from hil.runtime.loop import Runtime, World
 from hil.runtime.resynthesis import ResynthesisMode
-from hil.scenarios.scenario import load_scenario
+from hil.runtime.settings import LoopConfig
+from hil.scenarios import load_scenario
 
 
 @dataclass(frozen=True)

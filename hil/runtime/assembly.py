@@ -16,9 +16,10 @@ from hil.controllers.allocation import MinimumMagnitudeAzimuthAllocator
 from hil.controllers.observer import Ekf, ObserverStatus
 from hil.controllers.pid import VelocityPid
 from hil.controllers.symbolic import Controller, NoWinningSetError, Synthesizer, cost
-from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, Rectangle, ThrusterCommand
+from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
+from hil.core.shapes import Rect
 from hil.runtime.stack import LowLevelOutput
-from hil.scenarios.scenario import Obstacle, Rect, Scenario
+from hil.scenarios import Obstacle, Scenario
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -142,8 +143,8 @@ def layout_from_scenario(scenario: Scenario, t_ns: int = 0) -> ObstacleLayout:
     rects = []
     for obstacle in scenario.obstacles:
         v = obstacle.shape.vertices()
-        rects.append(Rectangle(float(v[:, 0].min()), float(v[:, 0].max()),
-                               float(v[:, 1].min()), float(v[:, 1].max())))
+        rects.append(Rect(float(v[:, 0].min()), float(v[:, 0].max()),
+                          float(v[:, 1].min()), float(v[:, 1].max())))
     return ObstacleLayout(t_ns, tuple(rects))
 
 

@@ -4,7 +4,9 @@ Each tick (20 Hz by default) the loop drains the pose and IMU feeds into the
 observer, watches the obstacle feed and the re-synthesis worker, takes a
 symbolic decision every `decision_period_s`, runs the velocity controller and
 the allocator, sends the thruster command and records all of it. Faults have
-one defined behaviour each (:class:`hil.runtime.events.EventCode`).
+one defined behaviour each (:class:`hil.runtime.events.EventCode`). Its settings
+are :class:`hil.runtime.settings.LoopConfig`, what it counts
+:class:`hil.runtime.stats.RunStats`.
 """
 
 from __future__ import annotations
@@ -12,7 +14,7 @@ from __future__ import annotations
 import enum
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -29,10 +31,11 @@ from hil.core.records import Decision, EventLevel
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
 from hil.runtime.events import EventCode
 from hil.runtime.resynthesis import Resynthesizer
+from hil.runtime.settings import NS_PER_S, LoopConfig
 from hil.runtime.stack import LowLevel, Observer, RunLog, SymbolicController
+from hil.runtime.stats import RunStats
 
 FloatArray = NDArray[np.float64]
-NS_PER_S = 1_000_000_000
 
 
 class Mode(enum.Enum):
@@ -53,48 +56,6 @@ class Mode(enum.Enum):
 
 
 @dataclass(frozen=True, slots=True)
-class LoopConfig:
-    """Timing and fault thresholds of the loop.
-
-    Attributes:
-        loop_hz: Rate of the low-level loop (Hz); 20 Hz as on the vessel.
-        decision_period_s: Period of symbolic decisions, the abstraction's tau (s).
-        resynthesis_period_s: Re-synthesize on this timer as well as on obstacle
-            changes (s); None for changes only.
-        pose_timeout_s: A pose older than this puts the loop on hold (s).
-        dock_hold_s: Time to stay in the target before the run counts as docked (s).
-        max_duration_s: The run stops with a timeout after this long (s).
-        max_thruster_failures: Consecutive delivery failures before stopping.
-    """
-
-    loop_hz: float = 20.0
-    decision_period_s: float = 2.0
-    resynthesis_period_s: float | None = 2.0
-    pose_timeout_s: float = 0.5
-    dock_hold_s: float = 4.0
-    max_duration_s: float = 600.0
-    max_thruster_failures: int = 20
-
-    def __post_init__(self) -> None:
-        for name in ("loop_hz", "decision_period_s", "pose_timeout_s", "max_duration_s"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"loop config {name!r} must be positive, got {value!r}")
-        if self.dock_hold_s < 0:
-            raise ValueError(f"loop config 'dock_hold_s' must be >= 0, got {self.dock_hold_s!r}")
-        if self.resynthesis_period_s is not None and not self.resynthesis_period_s > 0:
-            raise ValueError(
-                "loop config 'resynthesis_period_s' must be positive or None, "
-                f"got {self.resynthesis_period_s!r}"
-            )
-
-    @property
-    def period_ns(self) -> int:
-        """Loop period (ns)."""
-        return round(NS_PER_S / self.loop_hz)
-
-
-@dataclass(frozen=True, slots=True)
 class World:
     """Everything the stack reads and writes, from one backend."""
 
@@ -103,36 +64,6 @@ class World:
     imu: ImuSource
     obstacles: ObstacleSource
     thrusters: ThrusterSink
-
-
-@dataclass
-class RunStats:
-    """Counters and time series the loop keeps for the run's summary.
-
-    Series are time-major lists, one row per tick under control: `t_ns`,
-    `eta_hat` (3,), `nu_hat` (3,), `nu_ref` (3,); `tick_wall_ns` holds the clock
-    time at which every tick started (for the period jitter).
-    """
-
-    start_ns: int = 0
-    end_ns: int = 0
-    overruns: int = 0
-    tick_wall_ns: list[int] = field(default_factory=list)
-    decisions: int = 0
-    resyntheses: int = 0
-    synthesis_seconds: list[float] = field(default_factory=list)
-    failed_syntheses: int = 0
-    rejected_samples: int = 0
-    pose_losses: int = 0
-    thruster_failures: int = 0
-    not_winning_decisions: int = 0
-    target_reached_ns: int | None = None
-    docked_ns: int | None = None
-    end_reason: str = ""
-    t_ns: list[int] = field(default_factory=list)
-    eta_hat: list[FloatArray] = field(default_factory=list)
-    nu_hat: list[FloatArray] = field(default_factory=list)
-    nu_ref: list[FloatArray] = field(default_factory=list)
 
 
 def layout_covers(old: ObstacleLayout, new: ObstacleLayout) -> bool:

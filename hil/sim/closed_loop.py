@@ -1,8 +1,8 @@
 """The whole low level in one compiled loop: sensors -> EKF -> PID -> allocation -> vessel.
 
 One ``@njit`` loop at the physics rate (100 Hz by default) built only from the kernels
-the Python-level classes use (:mod:`hil.model.vessel`, :mod:`hil.model.thrusters`,
-:mod:`hil.controllers.allocation`, :mod:`hil.controllers.pid`, and the observer's
+the Python-level classes use (:mod:`hil.model.dynamics`, :mod:`hil.model.thrusters`,
+:mod:`hil.controllers.allocation_kernels`, :mod:`hil.controllers.pid`, and the observer's
 kernels), so a 3-minute run takes a fraction of a second and there is one copy of the
 math. Per physics step k (t = k dt):
 
@@ -26,17 +26,19 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from hil.controllers.allocation import (
-    MmaArrays,
-    MmaConfig,
+from hil.controllers.allocation import MmaArrays, MmaConfig
+from hil.controllers.allocation_kernels import (
     extended_matrix,
     mma_allocate,
     pseudo_inverse_allocate,
 )
 from hil.controllers.observer import ObserverConfig
-from hil.controllers.observer_kernels import EkfArrays, obs_imu, obs_init, obs_pose
+from hil.controllers.observer_arrays import EkfArrays
+from hil.controllers.observer_kernels import obs_imu, obs_init, obs_pose
 from hil.controllers.pid import DEFAULT_GAINS, N_PID_STATE, PidGains, pid_command, pid_integrate
 from hil.core.jit import njit
+from hil.model.coefficients import ENTERPRISE_I, VesselParams
+from hil.model.dynamics import Integrator, acceleration, integrate_step
 from hil.model.environment import EnvironmentalLoad
 from hil.model.errors import StateShapeError
 from hil.model.thrusters import (
@@ -45,13 +47,6 @@ from hil.model.thrusters import (
     throttle_for_slew,
     thruster_force,
     thruster_update,
-)
-from hil.model.vessel import (
-    ENTERPRISE_I,
-    Integrator,
-    VesselParams,
-    acceleration,
-    integrate_step,
 )
 from hil.sim.errors import ClosedLoopConfigError
 from hil.sim.sensors import (

@@ -13,8 +13,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hil.core.jit import njit
+from hil.model.dynamics import acceleration, integrate_step
 from hil.model.thrusters import throttle_for_slew, thruster_force, thruster_update
-from hil.model.vessel import acceleration, integrate_step
 
 FloatArray = NDArray[np.float64]
 
@@ -52,7 +52,7 @@ def plant_step(
         m_inv: Vessel M^-1, shape (3, 3).
         coef: Vessel coefficient array.
         tp: Thruster parameter array.
-        method: Integrator (:class:`hil.model.vessel.Integrator` value).
+        method: Integrator (:class:`hil.model.dynamics.Integrator` value).
         dt: Physics step (s).
         state: Plant state, shape (N_PLANT,), updated in place (see P_*).
         u_set: Commanded (tunnel, port, starboard), shape (3,), normalized.
@@ -101,7 +101,7 @@ def plant_advance(
         m_inv: Vessel M^-1, shape (3, 3).
         coef: Vessel coefficient array.
         tp: Thruster parameter array.
-        method: Integrator (:class:`hil.model.vessel.Integrator` value).
+        method: Integrator (:class:`hil.model.dynamics.Integrator` value).
         dt: Physics step (s).
         state: Plant state, shape (N_PLANT,), updated in place.
         u_set: Commanded (tunnel, port, starboard), shape (3,).

@@ -30,7 +30,7 @@ from hil.controllers.symbolic.abstraction import displacement
 from hil.core.records import Decision
 from hil.runs.sim_run import scenario_hash, synthesizer_for
 from hil.runtime.assembly import LayoutSolver, obstacles_from_layout
-from hil.scenarios.scenario import Scenario, ScenarioError, load_scenario, packaged_scenarios
+from hil.scenarios import Scenario, ScenarioError, load_scenario, packaged_scenarios
 
 FloatArray = NDArray[np.float64]
 I32Array = NDArray[np.int32]

@@ -24,7 +24,7 @@ from matplotlib.patches import Polygon as PolygonPatch
 from numpy.typing import NDArray
 
 from hil.bag.run_data import RunData
-from hil.scenarios.scenario import Hull, Scenario, hull_footprint
+from hil.scenarios import Hull, Scenario, hull_footprint
 from hil.views.controller_view import inflated_outlines
 
 FloatArray = NDArray[np.float64]

@@ -39,7 +39,7 @@ from hil.bag.run_data import Layout, RunData, Series, synthesis_time
 from hil.core.records import Decision, Event, EventLevel
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
 from hil.runtime.stack import RunLog
-from hil.scenarios.scenario import Hull, Scenario
+from hil.scenarios import Hull, Scenario
 from hil.views.controller_view import (
     ControllerView,
     WinningSlice,

@@ -28,13 +28,13 @@ from hil.core.samples import (
     ImuSample,
     ObstacleLayout,
     PoseSample,
-    Rectangle,
     ThrusterCommand,
 )
+from hil.core.shapes import Rect
 
 MS = 1_000_000
 CONFIG = RecorderConfig(split_s=1e9, flush_s=1e9, threaded=False)
-O1 = Rectangle(1.75, 2.25, -3.0, 0.0)
+O1 = Rect(1.75, 2.25, -3.0, 0.0)
 
 
 def _records() -> list[Record]:
@@ -44,7 +44,7 @@ def _records() -> list[Record]:
         t = 10 * MS * k
         out.append(PoseSample(t, 1.0 + 0.01 * k, 2.0, 0.5))
         out.append(ImuSample(t, 0.0, 0.1, 0.01 * k))
-    out.append(ObstacleLayout(100 * MS, (O1.shifted(0.1, 0.0),)))
+    out.append(ObstacleLayout(100 * MS, (O1.translate(0.1, 0.0),)))
     out.append(Event(150 * MS, EventLevel.ERROR, "thruster_failure", "link down"))
     out.sort(key=lambda r: r.t_ns)
     return out

@@ -29,9 +29,9 @@ from hil.core.samples import (
     ImuSample,
     ObstacleLayout,
     PoseSample,
-    Rectangle,
     ThrusterCommand,
 )
+from hil.core.shapes import Rect
 
 rclpy = pytest.importorskip("rclpy")
 pytest.importorskip("rclpy.executors")
@@ -199,19 +199,19 @@ def test_dds_thruster_commands_reach_the_vessel(peer_and_world: tuple[_Peer, Ros
 
 def test_dds_tracked_obstacles_move_the_layout() -> None:
     domain = _domain_id() + 1
-    o1, o2 = Rectangle(1.75, 2.25, -3.0, 0.0), Rectangle(-1.25, -0.75, 0.0, 3.0)
+    o1, o2 = Rect(1.75, 2.25, -3.0, 0.0), Rect(-1.25, -0.75, 0.0, 3.0)
     initial = ObstacleLayout(0, (o1, o2))
     config = RosConfig(transform=TRANSFORM, domain_id=domain,
                        topics=RosTopics(obstacles="/voyager/obstacles"),
                        node_name=f"stack_{os.getpid()}_{next(_NAMES)}")
     peer = _Peer(domain)
     publisher = peer.node.create_publisher(geometry_msgs.PoseArray, "/voyager/obstacles", 10)
-    moved = ObstacleLayout(3_000_000_000, (initial.obstacles[0].shifted(0.3, 0.0),
-                                           initial.obstacles[1].shifted(0.0, -0.2)))
+    moved = ObstacleLayout(3_000_000_000, (initial.obstacles[0].translate(0.3, 0.0),
+                                           initial.obstacles[1].translate(0.0, -0.2)))
     msg = geometry_msgs.PoseArray()
     fill_obstacle_msg(msg, moved, TRANSFORM)
     jitter = geometry_msgs.PoseArray()  # a 2-mm wobble must not count as a move
-    fill_obstacle_msg(jitter, ObstacleLayout(1, (initial.obstacles[0].shifted(0.002, 0.0),
+    fill_obstacle_msg(jitter, ObstacleLayout(1, (initial.obstacles[0].translate(0.002, 0.0),
                                                  initial.obstacles[1])), TRANSFORM)
     with RosWorld(config, obstacles=initial) as world:
         source = world.obstacle_source

@@ -13,10 +13,10 @@ from hil.core.samples import (
     ImuSample,
     ObstacleLayout,
     PoseSample,
-    Rectangle,
     ThrusterCommand,
     VelocityReference,
 )
+from hil.core.shapes import Rect
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 FOREIGN_BAGS = REPO_ROOT.parent / "shared" / "foreign_bags"
@@ -59,6 +59,6 @@ def one_of_each(t_ns: int, i: int = 0) -> list[Record]:
             "sha256:abc",
         ),
         Decision.from_arrays(t_ns, [0, 0, 0], -1, math.inf, False, [], [], -1, 2, "sha256:abc"),
-        ObstacleLayout(t_ns, (Rectangle(0.0, 1.0, 2.0, 3.5 + s), Rectangle(-1.0, 0.5, 0.0, 0.25))),
+        ObstacleLayout(t_ns, (Rect(0.0, 1.0, 2.0, 3.5 + s), Rect(-1.0, 0.5, 0.0, 0.25))),
         Event(t_ns, EventLevel.WARN, "pose_stale", f"no pose for 0.{i} s"),
     ]

@@ -24,7 +24,8 @@ from hil.bag.reader import BagReader
 from hil.bag.recorder import Recorder, RecorderConfig, RunInfo
 from hil.bag.typestore import typestore
 from hil.core.records import Decision, EventLevel, ForceCommand, StateEstimate
-from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, Rectangle, ThrusterCommand
+from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
+from hil.core.shapes import Rect
 from tests.bag.bag_streams import one_of_each
 
 R = TypeVar("R", bound=Record)
@@ -278,7 +279,7 @@ def test_recorder_is_the_runtimes_run_log(tmp_path: Path) -> None:
     log.open()
     log.pose(PoseSample(1, 0.0, 0.0, 0.0))
     log.imu(ImuSample(1, 0.0, 0.0, 0.0))
-    log.obstacles(ObstacleLayout(1, (Rectangle(0.0, 1.0, 0.0, 1.0),)))
+    log.obstacles(ObstacleLayout(1, (Rect(0.0, 1.0, 0.0, 1.0),)))
     log.close()
     with BagReader(tmp_path / "run") as reader:
         assert {t for t, _, _ in reader.records()} == {topics.POSE, topics.IMU, topics.OBSTACLES}

@@ -13,7 +13,7 @@ from rerun.chunk import RrdReader
 from hil.bag.reader import describe
 from hil.commands import inspect
 from hil.runs.sim_run import SimRunSpec, run_in_sim
-from hil.runtime.loop import LoopConfig
+from hil.runtime.settings import LoopConfig
 
 FOREIGN = Path("/work/shared/foreign_bags")
 

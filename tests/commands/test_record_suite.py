@@ -11,7 +11,7 @@ import pytest
 
 from hil.commands import record_suite
 from hil.commands.record_suite import SuiteRun, describe_change, record_run, suite
-from hil.runtime.loop import LoopConfig
+from hil.runtime.settings import LoopConfig
 
 LOGS = Path(__file__).resolve().parents[2] / "logs"
 

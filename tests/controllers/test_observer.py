@@ -10,14 +10,50 @@ import pytest
 import scipy.linalg as sl  # type: ignore[import-untyped]
 from scipy import stats
 
-from hil.controllers import observer_kernels as k
 from hil.controllers.errors import (
     ObserverConfigError,
     ObserverInputError,
     ObserverNotInitializedError,
 )
 from hil.controllers.observer import Ekf, ObserverConfig, ObserverStatus
-from hil.controllers.observer_kernels import EkfArrays, FloatArray
+from hil.controllers.observer_arrays import (
+    C_GYRO_GATED,
+    C_IMU_ABSURD,
+    C_IMU_FUSED,
+    C_IMU_LATE,
+    C_IMU_NONFINITE,
+    C_POSE_ABSURD,
+    C_POSE_FUSED,
+    C_POSE_GATED,
+    C_POSE_LATE,
+    C_POSE_NONFINITE,
+    C_POSE_RESET,
+    C_POSE_TOO_OLD,
+    S_ABSURD,
+    S_DUPLICATE,
+    S_FUSED,
+    S_GATED,
+    S_NONFINITE,
+    S_RESET,
+    S_TOO_OLD,
+    EkfArrays,
+)
+from hil.controllers.observer_kernels import obs_imu, obs_init, obs_pose, obs_time_ns
+from hil.controllers.observer_math import (
+    P_Q_BA,
+    P_Q_BR,
+    P_Q_R,
+    P_Q_UV,
+    P_R_GYRO,
+    P_R_PSI,
+    P_R_X,
+    P_R_Y,
+    FloatArray,
+    ekf_predict,
+    ekf_update_pose,
+    ekf_update_yaw_rate,
+)
+from hil.controllers.observer_ring import M_GATED_RUN
 from hil.core.samples import Frame, ImuSample, PoseSample
 
 DT = 0.01
@@ -45,8 +81,8 @@ def twin_predict(
     x: FloatArray, P: FloatArray, dt: float, ax: float, ay: float, prm: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
     F = np.eye(9) + dt * twin_jacobian(x)
-    q = [0, 0, 0, prm[k.P_Q_UV], prm[k.P_Q_UV], prm[k.P_Q_R]]
-    Q = np.diag([*q, prm[k.P_Q_BA], prm[k.P_Q_BA], prm[k.P_Q_BR]]) * dt
+    q = [0, 0, 0, prm[P_Q_UV], prm[P_Q_UV], prm[P_Q_R]]
+    Q = np.diag([*q, prm[P_Q_BA], prm[P_Q_BA], prm[P_Q_BR]]) * dt
     psi, u, v, r = x[2], x[3], x[4], x[5]
     xn = x.copy()
     xn[0] += dt * (math.cos(psi) * u - math.sin(psi) * v)
@@ -80,7 +116,7 @@ def params(cfg: ObserverConfig | None = None) -> FloatArray:
 
 def started(cfg: ObserverConfig, x0: FloatArray | None = None) -> EkfArrays:
     a = cfg.arrays()
-    k.obs_init(a, 0, np.zeros(9) if x0 is None else x0, cfg.initial_covariance())
+    obs_init(a, 0, np.zeros(9) if x0 is None else x0, cfg.initial_covariance())
     return a
 
 
@@ -95,7 +131,7 @@ def assert_untouched(a: EkfArrays, before: list[FloatArray], counter: int) -> No
             expected[counter] += 1
             np.testing.assert_array_equal(new, expected)
         elif name == "meta":  # the ring itself; the gated-in-a-row count may move
-            np.testing.assert_array_equal(new[: k.M_GATED_RUN], old[: k.M_GATED_RUN])
+            np.testing.assert_array_equal(new[: M_GATED_RUN], old[: M_GATED_RUN])
         else:
             np.testing.assert_array_equal(new, old, err_msg=name)
 
@@ -112,7 +148,7 @@ def test_predict_matches_numpy_twin() -> None:
         x, P = random_state(rng)
         ax, ay = rng.normal(size=2)
         want_x, want_P = twin_predict(x, P, 0.013, float(ax), float(ay), prm)
-        k.ekf_predict(x, P, 0.013, float(ax), float(ay), prm)
+        ekf_predict(x, P, 0.013, float(ax), float(ay), prm)
         np.testing.assert_allclose(x, want_x, rtol=1e-13, atol=1e-15)
         np.testing.assert_allclose(P, want_P, rtol=1e-12, atol=1e-16)
         np.testing.assert_array_equal(P, P.T)
@@ -133,7 +169,7 @@ def test_pose_update_matches_numpy_twin_across_the_heading_cut() -> None:
         y[2] = math.remainder(y[2], 2 * math.pi)
         want_x, want_P, _ = twin_update(x, P, H, y, np.diag(r_diag))
         want_x[2] = math.remainder(want_x[2], 2 * math.pi)
-        assert k.ekf_update_pose(x, P, z, r_diag, math.inf)
+        assert ekf_update_pose(x, P, z, r_diag, math.inf)
         np.testing.assert_allclose(x, want_x, rtol=1e-10, atol=1e-13)
         np.testing.assert_allclose(P, want_P, rtol=1e-8, atol=1e-14)
 
@@ -146,7 +182,7 @@ def test_yaw_rate_update_matches_numpy_twin() -> None:
         x, P = random_state(rng)
         z = x[5] + x[8] + float(rng.normal()) * 0.01
         want_x, want_P, _ = twin_update(x, P, H, np.array([z - x[5] - x[8]]), np.array([[1e-4]]))
-        assert k.ekf_update_yaw_rate(x, P, z, 1e-4, math.inf)
+        assert ekf_update_yaw_rate(x, P, z, 1e-4, math.inf)
         np.testing.assert_allclose(x, want_x, rtol=1e-10, atol=1e-14)
         np.testing.assert_allclose(P, want_P, rtol=1e-8, atol=1e-14)
 
@@ -160,12 +196,12 @@ def test_gate_uses_the_mahalanobis_distance_and_refuses_in_place() -> None:
     z = x[:3] + np.array([0.3, -0.2, 0.1])
     _, _, d2 = twin_update(x, P, H, z - x[:3], np.diag(r_diag))
     x0, P0 = x.copy(), P.copy()
-    assert not k.ekf_update_pose(x, P, z, r_diag, d2 * 0.999)
+    assert not ekf_update_pose(x, P, z, r_diag, d2 * 0.999)
     np.testing.assert_array_equal(x, x0)
     np.testing.assert_array_equal(P, P0)
-    assert k.ekf_update_pose(x, P, z, r_diag, d2 * 1.001)
+    assert ekf_update_pose(x, P, z, r_diag, d2 * 1.001)
     x1, P1 = x0.copy(), P0.copy()
-    assert not k.ekf_update_yaw_rate(x1, P1, math.nan, 1e-4, math.inf)
+    assert not ekf_update_yaw_rate(x1, P1, math.nan, 1e-4, math.inf)
     np.testing.assert_array_equal(x1, x0)
 
 
@@ -179,15 +215,15 @@ def test_static_vessel_covariance_reaches_the_kalman_steady_state() -> None:
     cfg = ObserverConfig(accel_bias_walk_mps2_per_sqrt_s=0.01, gyro_bias_walk_radps_per_sqrt_s=1e-3)
     a = started(cfg)
     for i in range(1, 3001):
-        k.obs_imu(a, i * DT_NS, 0.0, 0.0, 0.0)
-        k.obs_pose(a, i * DT_NS, 0.0, 0.0, 0.0)
+        obs_imu(a, i * DT_NS, 0.0, 0.0, 0.0)
+        obs_pose(a, i * DT_NS, 0.0, 0.0, 0.0)
     prm = cfg.params()
     F = np.eye(9) + DT * twin_jacobian(np.zeros(9))
-    q = [0, 0, 0, prm[k.P_Q_UV], prm[k.P_Q_UV], prm[k.P_Q_R]]
-    Q = np.diag([*q, prm[k.P_Q_BA], prm[k.P_Q_BA], prm[k.P_Q_BR]]) * DT
+    q = [0, 0, 0, prm[P_Q_UV], prm[P_Q_UV], prm[P_Q_R]]
+    Q = np.diag([*q, prm[P_Q_BA], prm[P_Q_BA], prm[P_Q_BR]]) * DT
     H = np.zeros((4, 9))
     H[0, 0] = H[1, 1] = H[2, 2] = H[3, 5] = H[3, 8] = 1.0
-    R = np.diag(prm[[k.P_R_X, k.P_R_Y, k.P_R_PSI, k.P_R_GYRO]])
+    R = np.diag(prm[[P_R_X, P_R_Y, P_R_PSI, P_R_GYRO]])
     prior = sl.solve_discrete_are(F.T, H.T, Q, R)
     post = prior - prior @ H.T @ np.linalg.solve(H @ prior @ H.T + R, H @ prior)
     scale = np.sqrt(np.outer(np.diag(post), np.diag(post)))
@@ -210,9 +246,9 @@ def test_static_vessel_with_noisy_pose_converges() -> None:
             cfg.accel_std_mps2,
             cfg.gyro_std_radps,
         ]
-        k.obs_imu(a, i * DT_NS, float(ax), float(ay), float(r))
+        obs_imu(a, i * DT_NS, float(ax), float(ay), float(r))
         z = truth + rng.normal(size=3) * std
-        k.obs_pose(a, i * DT_NS, float(z[0]), float(z[1]), float(z[2]))
+        obs_pose(a, i * DT_NS, float(z[0]), float(z[1]), float(z[2]))
     err = a.x[:6] - np.r_[truth, 0, 0, 0]
     err[2] = math.remainder(err[2], 2 * math.pi)
     sigma = np.sqrt(np.diag(a.P)[:6])
@@ -247,7 +283,7 @@ def simulate(
     truth[6:9] = rng.normal(size=3) * np.sqrt(np.diag(P0)[6:9])
     x0 = truth + rng.multivariate_normal(np.zeros(9), P0)
     a = started(cfg, x0)
-    pose_std = np.sqrt(prm[[k.P_R_X, k.P_R_Y, k.P_R_PSI]])
+    pose_std = np.sqrt(prm[[P_R_X, P_R_Y, P_R_PSI]])
     poses: list[tuple[int, FloatArray]] = []
     errs = np.zeros((n_steps, 9))
     nees = np.zeros(n_steps)
@@ -263,26 +299,26 @@ def simulate(
         truth[1] += DT * (s * u + c * v)
         truth[2] = math.remainder(psi + DT * r, 2 * math.pi)
         truth[3:5] += DT * nu_dot
-        truth[5] += math.sqrt(prm[k.P_Q_R] * DT) * rng.normal()
-        walk = np.sqrt(prm[[k.P_Q_BA, k.P_Q_BA, k.P_Q_BR]] * DT)
+        truth[5] += math.sqrt(prm[P_Q_R] * DT) * rng.normal()
+        walk = np.sqrt(prm[[P_Q_BA, P_Q_BA, P_Q_BR]] * DT)
         truth[6:9] += walk * rng.normal(size=3)
         # IMU sample at the start of step i, held over [t, t + dt).
         meas = np.r_[f, truth[5]] + truth[6:9]
         meas += rng.normal(size=3) * np.array([cfg.accel_std_mps2] * 2 + [cfg.gyro_std_radps])
-        k.obs_imu(a, i * DT_NS, float(meas[0]), float(meas[1]), float(meas[2]))
+        obs_imu(a, i * DT_NS, float(meas[0]), float(meas[1]), float(meas[2]))
         z = truth[:3] + rng.normal(size=3) * pose_std
         if not dropout[0] <= i < dropout[1]:
             poses.append((i * DT_NS, z))
         while poses and poses[0][0] <= (i - delay) * DT_NS:
             t_ns, zz = poses.pop(0)
-            k.obs_pose(a, t_ns, float(zz[0]), float(zz[1]), float(zz[2]))
+            obs_pose(a, t_ns, float(zz[0]), float(zz[1]), float(zz[2]))
         e = a.x - truth
         e[2] = math.remainder(e[2], 2 * math.pi)
         errs[i - 1] = e
         nees[i - 1] = e @ np.linalg.solve(a.P, e)
         trace[i - 1] = np.trace(a.P[:2, :2])
     for t_ns, zz in poses if flush else []:
-        k.obs_pose(a, t_ns, float(zz[0]), float(zz[1]), float(zz[2]))
+        obs_pose(a, t_ns, float(zz[0]), float(zz[1]), float(zz[2]))
     return errs, nees, trace, a
 
 
@@ -313,9 +349,9 @@ def test_late_poses_give_the_same_estimate_as_timely_ones() -> None:
     cfg = consistency_config()
     _, _, _, on_time = simulate(cfg, 7, 300)
     _, _, _, late = simulate(cfg, 7, 300, delay=3, flush=True)
-    assert on_time.counters[k.C_POSE_LATE] == 0
-    assert late.counters[k.C_POSE_FUSED] == 300
-    assert late.counters[k.C_POSE_LATE] == 299  # the last one is at the filter time
+    assert on_time.counters[C_POSE_LATE] == 0
+    assert late.counters[C_POSE_FUSED] == 300
+    assert late.counters[C_POSE_LATE] == 299  # the last one is at the filter time
     np.testing.assert_allclose(late.x, on_time.x, rtol=0, atol=1e-12)
     np.testing.assert_allclose(late.P, on_time.P, rtol=0, atol=1e-15)
 
@@ -335,11 +371,11 @@ def test_out_of_order_poses_give_the_same_estimate_as_in_order() -> None:
     for sequence in (order, shuffled):
         a = started(cfg, x0)
         for i in range(1, 40):
-            k.obs_imu(a, i * DT_NS, float(imu[i, 0]), float(imu[i, 1]), float(imu[i, 2]))
+            obs_imu(a, i * DT_NS, float(imu[i, 0]), float(imu[i, 1]), float(imu[i, 2]))
         for j in sequence:
             t_ns, z = poses[j]
-            status = k.obs_pose(a, t_ns, float(z[0]), float(z[1]), float(z[2]))
-            assert status == k.S_FUSED
+            status = obs_pose(a, t_ns, float(z[0]), float(z[1]), float(z[2]))
+            assert status == S_FUSED
         results.append((a.x.copy(), a.P.copy()))
     np.testing.assert_allclose(results[0][0], results[1][0], atol=1e-12)
     np.testing.assert_allclose(results[0][1], results[1][1], atol=1e-14)
@@ -368,77 +404,77 @@ def test_recovers_within_half_a_second_after_a_one_second_pose_dropout() -> None
 @pytest.mark.parametrize(
     ("sample", "status", "counter"),
     [
-        ((math.nan, 0.0, 0.0), k.S_NONFINITE, k.C_POSE_NONFINITE),
-        ((0.0, math.inf, 0.0), k.S_NONFINITE, k.C_POSE_NONFINITE),
-        ((0.0, 0.0, -math.inf), k.S_NONFINITE, k.C_POSE_NONFINITE),
-        ((1e6, 0.0, 0.0), k.S_ABSURD, k.C_POSE_ABSURD),
-        ((0.5, 0.0, 0.0), k.S_GATED, k.C_POSE_GATED),  # a 0.5 m jump: an outlier
+        ((math.nan, 0.0, 0.0), S_NONFINITE, C_POSE_NONFINITE),
+        ((0.0, math.inf, 0.0), S_NONFINITE, C_POSE_NONFINITE),
+        ((0.0, 0.0, -math.inf), S_NONFINITE, C_POSE_NONFINITE),
+        ((1e6, 0.0, 0.0), S_ABSURD, C_POSE_ABSURD),
+        ((0.5, 0.0, 0.0), S_GATED, C_POSE_GATED),  # a 0.5 m jump: an outlier
     ],
 )
 def test_bad_pose_is_refused_without_touching_the_state(
     sample: tuple[float, float, float], status: int, counter: int
 ) -> None:
     a = started(ObserverConfig())
-    k.obs_imu(a, DT_NS, 0.01, 0.0, 0.0)
-    k.obs_pose(a, DT_NS, 0.0, 0.0, 0.0)
+    obs_imu(a, DT_NS, 0.01, 0.0, 0.0)
+    obs_pose(a, DT_NS, 0.0, 0.0, 0.0)
     before = snapshot(a)
-    assert k.obs_pose(a, DT_NS // 2, *sample) == status  # late, too: no history change
+    assert obs_pose(a, DT_NS // 2, *sample) == status  # late, too: no history change
     assert_untouched(a, before, counter)
     again = snapshot(a)
-    assert k.obs_pose(a, 2 * DT_NS, *sample) == status  # in the future: no advance either
+    assert obs_pose(a, 2 * DT_NS, *sample) == status  # in the future: no advance either
     assert_untouched(a, again, counter)
     again = snapshot(a)
-    assert k.obs_pose(a, 0, *sample) == status  # late, at a stamp the history has
+    assert obs_pose(a, 0, *sample) == status  # late, at a stamp the history has
     assert_untouched(a, again, counter)
 
 
 @pytest.mark.parametrize(
     ("sample", "status", "counter"),
     [
-        ((math.nan, 0.0, 0.0), k.S_NONFINITE, k.C_IMU_NONFINITE),
-        ((0.0, 0.0, math.inf), k.S_NONFINITE, k.C_IMU_NONFINITE),
-        ((100.0, 0.0, 0.0), k.S_ABSURD, k.C_IMU_ABSURD),
-        ((0.0, 0.0, 50.0), k.S_ABSURD, k.C_IMU_ABSURD),
+        ((math.nan, 0.0, 0.0), S_NONFINITE, C_IMU_NONFINITE),
+        ((0.0, 0.0, math.inf), S_NONFINITE, C_IMU_NONFINITE),
+        ((100.0, 0.0, 0.0), S_ABSURD, C_IMU_ABSURD),
+        ((0.0, 0.0, 50.0), S_ABSURD, C_IMU_ABSURD),
     ],
 )
 def test_bad_imu_is_refused_without_touching_the_state(
     sample: tuple[float, float, float], status: int, counter: int
 ) -> None:
     a = started(ObserverConfig())
-    k.obs_imu(a, DT_NS, 0.01, 0.0, 0.0)
+    obs_imu(a, DT_NS, 0.01, 0.0, 0.0)
     before = snapshot(a)
-    assert k.obs_imu(a, 2 * DT_NS, *sample) == status
+    assert obs_imu(a, 2 * DT_NS, *sample) == status
     assert_untouched(a, before, counter)
 
 
 def test_gated_yaw_rate_still_advances_time_with_the_acceleration() -> None:
     a = started(ObserverConfig())
-    k.obs_imu(a, DT_NS, 0.0, 0.0, 0.0)
-    assert k.obs_imu(a, 2 * DT_NS, 0.1, 0.0, 5.0) == k.S_GATED
-    assert k.obs_time_ns(a) == 2 * DT_NS
-    assert a.counters[k.C_GYRO_GATED] == 1
-    assert a.counters[k.C_IMU_FUSED] == 2
+    obs_imu(a, DT_NS, 0.0, 0.0, 0.0)
+    assert obs_imu(a, 2 * DT_NS, 0.1, 0.0, 5.0) == S_GATED
+    assert obs_time_ns(a) == 2 * DT_NS
+    assert a.counters[C_GYRO_GATED] == 1
+    assert a.counters[C_IMU_FUSED] == 2
 
 
 def test_too_old_and_duplicate_samples_are_refused_and_counted() -> None:
     cfg = ObserverConfig(max_delay_s=0.05, history_len=8)
     a = started(cfg)
     for i in range(1, 21):
-        k.obs_imu(a, i * DT_NS, 0.0, 0.0, 0.0)
+        obs_imu(a, i * DT_NS, 0.0, 0.0, 0.0)
     before = snapshot(a)
-    assert k.obs_pose(a, 14 * DT_NS, 0.0, 0.0, 0.0) == k.S_TOO_OLD  # older than max_delay
-    assert_untouched(a, before, k.C_POSE_TOO_OLD)
-    assert k.obs_imu(a, 20 * DT_NS, 0.0, 0.0, 0.0) == k.S_DUPLICATE
-    assert k.obs_pose(a, 17 * DT_NS, 0.0, 0.0, 0.0) == k.S_FUSED
-    assert k.obs_pose(a, 17 * DT_NS, 0.0, 0.0, 0.0) == k.S_DUPLICATE
+    assert obs_pose(a, 14 * DT_NS, 0.0, 0.0, 0.0) == S_TOO_OLD  # older than max_delay
+    assert_untouched(a, before, C_POSE_TOO_OLD)
+    assert obs_imu(a, 20 * DT_NS, 0.0, 0.0, 0.0) == S_DUPLICATE
+    assert obs_pose(a, 17 * DT_NS, 0.0, 0.0, 0.0) == S_FUSED
+    assert obs_pose(a, 17 * DT_NS, 0.0, 0.0, 0.0) == S_DUPLICATE
     # A full ring: a stamp between the two oldest slots has no room left.
     b = started(replace(cfg, max_delay_s=10.0, history_len=4))
     for i in range(1, 10):
-        k.obs_imu(b, i * DT_NS, 0.0, 0.0, 0.0)
-    assert k.obs_pose(b, 6 * DT_NS + 1, 0.0, 0.0, 0.0) == k.S_TOO_OLD
-    assert k.obs_pose(b, 5 * DT_NS, 0.0, 0.0, 0.0) == k.S_TOO_OLD
-    assert k.obs_pose(b, 7 * DT_NS + 1, 0.0, 0.0, 0.0) == k.S_FUSED
-    assert b.counters[k.C_POSE_TOO_OLD] == 2
+        obs_imu(b, i * DT_NS, 0.0, 0.0, 0.0)
+    assert obs_pose(b, 6 * DT_NS + 1, 0.0, 0.0, 0.0) == S_TOO_OLD
+    assert obs_pose(b, 5 * DT_NS, 0.0, 0.0, 0.0) == S_TOO_OLD
+    assert obs_pose(b, 7 * DT_NS + 1, 0.0, 0.0, 0.0) == S_FUSED
+    assert b.counters[C_POSE_TOO_OLD] == 2
 
 
 def test_late_imu_replaces_the_held_acceleration_from_its_stamp() -> None:
@@ -446,16 +482,16 @@ def test_late_imu_replaces_the_held_acceleration_from_its_stamp() -> None:
     timely = started(cfg)
     late = started(cfg)
     for i in range(1, 6):
-        k.obs_imu(timely, i * DT_NS, 0.2, -0.1, 0.01)
-        k.obs_pose(timely, i * DT_NS + DT_NS // 2, 0.0, 0.0, 0.0)
+        obs_imu(timely, i * DT_NS, 0.2, -0.1, 0.01)
+        obs_pose(timely, i * DT_NS + DT_NS // 2, 0.0, 0.0, 0.0)
     for i in (1, 2, 4, 5):
-        k.obs_imu(late, i * DT_NS, 0.2, -0.1, 0.01)
-        k.obs_pose(late, i * DT_NS + DT_NS // 2, 0.0, 0.0, 0.0)
-    k.obs_pose(late, 3 * DT_NS + DT_NS // 2, 0.0, 0.0, 0.0)
-    assert k.obs_imu(late, 3 * DT_NS, 0.2, -0.1, 0.01) == k.S_FUSED
+        obs_imu(late, i * DT_NS, 0.2, -0.1, 0.01)
+        obs_pose(late, i * DT_NS + DT_NS // 2, 0.0, 0.0, 0.0)
+    obs_pose(late, 3 * DT_NS + DT_NS // 2, 0.0, 0.0, 0.0)
+    assert obs_imu(late, 3 * DT_NS, 0.2, -0.1, 0.01) == S_FUSED
     np.testing.assert_allclose(late.x, timely.x, atol=1e-13)
     np.testing.assert_allclose(late.P, timely.P, atol=1e-15)
-    assert late.counters[k.C_IMU_LATE] == 1
+    assert late.counters[C_IMU_LATE] == 1
 
 
 # ---------------------------------------------------------------------------
@@ -498,9 +534,9 @@ def test_ekf_class_runs_the_same_kernels() -> None:
     for i in range(1, 30):
         sample = ImuSample(i * DT_NS, 0.01 * i, -0.02, 0.05)
         ekf.process_imu(sample)
-        k.obs_imu(a, i * DT_NS, 0.01 * i, -0.02, 0.05)
+        obs_imu(a, i * DT_NS, 0.01 * i, -0.02, 0.05)
         ekf.process_pose(PoseSample(i * DT_NS, 0.1 + 0.001 * i, 0.2, 0.3))
-        k.obs_pose(a, i * DT_NS, 0.1 + 0.001 * i, 0.2, 0.3)
+        obs_pose(a, i * DT_NS, 0.1 + 0.001 * i, 0.2, 0.3)
     np.testing.assert_array_equal(ekf.estimate().full_covariance, a.P)
     np.testing.assert_array_equal(ekf.arrays.x, a.x)
 
@@ -536,8 +572,8 @@ def test_bias_freeze_reduces_to_the_six_state_filter() -> None:
     cfg = ObserverConfig(estimate_bias=False)
     a = started(cfg)
     for i in range(1, 100):
-        k.obs_imu(a, i * DT_NS, 0.05, 0.0, 0.01)
-        k.obs_pose(a, i * DT_NS, 0.0, 0.0, 0.0)
+        obs_imu(a, i * DT_NS, 0.05, 0.0, 0.01)
+        obs_pose(a, i * DT_NS, 0.0, 0.0, 0.0)
     np.testing.assert_array_equal(a.x[6:], 0.0)
     np.testing.assert_array_equal(a.P[6:, :], 0.0)
 
@@ -548,18 +584,18 @@ def test_persistent_disagreement_restarts_the_pose_only_if_enabled(limit: int) -
     a = started(cfg)
     statuses = []
     for i in range(1, 41):
-        k.obs_imu(a, i * DT_NS, 0.0, 0.0, 0.0)
+        obs_imu(a, i * DT_NS, 0.0, 0.0, 0.0)
         # The vessel was really 0.5 m away (a wrong start): every pose is gated at first.
-        statuses.append(k.obs_pose(a, (i - 1) * DT_NS, 0.5, 0.0, 0.1))
+        statuses.append(obs_pose(a, (i - 1) * DT_NS, 0.5, 0.0, 0.1))
     if limit == 0:
-        assert statuses == [k.S_GATED] * 40
-        assert a.counters[k.C_POSE_RESET] == 0
+        assert statuses == [S_GATED] * 40
+        assert a.counters[C_POSE_RESET] == 0
         return
-    assert statuses[:19] == [k.S_GATED] * 19
-    assert statuses[19] == k.S_RESET
-    assert statuses[20:] == [k.S_FUSED] * 20
-    assert a.counters[k.C_POSE_RESET] == 1
-    assert a.counters[k.C_POSE_GATED] == 19
+    assert statuses[:19] == [S_GATED] * 19
+    assert statuses[19] == S_RESET
+    assert statuses[20:] == [S_FUSED] * 20
+    assert a.counters[C_POSE_RESET] == 1
+    assert a.counters[C_POSE_GATED] == 19
     np.testing.assert_allclose(a.x[:3], [0.5, 0.0, 0.1], atol=1e-3)
 
 
@@ -571,9 +607,9 @@ def test_imu_biases_are_learned_and_do_not_bias_the_velocity() -> None:
     for i in range(1, 2001):  # 20 s at rest
         noise = rng.normal(size=3) * [cfg.accel_std_mps2, cfg.accel_std_mps2, cfg.gyro_std_radps]
         f = bias + noise
-        k.obs_imu(a, i * DT_NS, float(f[0]), float(f[1]), float(f[2]))
+        obs_imu(a, i * DT_NS, float(f[0]), float(f[1]), float(f[2]))
         z = rng.normal(size=3) * [cfg.pose_std_m, cfg.pose_std_m, cfg.pose_yaw_std_rad]
-        k.obs_pose(a, i * DT_NS, float(z[0]), float(z[1]), float(z[2]))
+        obs_pose(a, i * DT_NS, float(z[0]), float(z[1]), float(z[2]))
     sigma = np.sqrt(np.diag(a.P))
     assert np.all(np.abs(a.x[6:9] - bias) < 4 * sigma[6:9])
     assert np.all(sigma[6:9] < 0.1 * np.abs(bias))
@@ -590,11 +626,11 @@ def test_accelerometer_bias_jump_does_not_make_the_filter_run_away() -> None:
     for i in range(1, 601):  # at rest; the bias jumps at 1 s
         bias = np.array([0.3, -0.3, 0.0]) if i > 100 else np.zeros(3)
         f = bias + rng.normal(size=3) * [cfg.accel_std_mps2, cfg.accel_std_mps2, cfg.gyro_std_radps]
-        k.obs_imu(a, i * DT_NS, float(f[0]), float(f[1]), float(f[2]))
+        obs_imu(a, i * DT_NS, float(f[0]), float(f[1]), float(f[2]))
         z = rng.normal(size=3) * [cfg.pose_std_m, cfg.pose_std_m, cfg.pose_yaw_std_rad]
-        k.obs_pose(a, (i - 1) * DT_NS, float(z[0]), float(z[1]), float(z[2]))
+        obs_pose(a, (i - 1) * DT_NS, float(z[0]), float(z[1]), float(z[2]))
         err[i - 1] = a.x[:6]
-    assert a.counters[k.C_POSE_RESET] <= 2
+    assert a.counters[C_POSE_RESET] <= 2
     assert np.max(np.abs(err[:, :2])) < 0.02
     # Two seconds after the jump the velocity is back to millimetres per second.
     assert np.max(np.abs(err[300:, 3:5])) < 0.01
@@ -610,7 +646,7 @@ def test_prediction_to_a_later_time_changes_nothing() -> None:
     for old, new in zip(before, ekf.arrays, strict=True):
         np.testing.assert_array_equal(new, old)
     x, P = before[0].copy(), before[1].copy()
-    k.ekf_predict(x, P, 0.025, 0.2, -0.1, ekf.config.params())
+    ekf_predict(x, P, 0.025, 0.2, -0.1, ekf.config.params())
     np.testing.assert_array_equal(later.eta, x[:3])
     np.testing.assert_array_equal(later.full_covariance, P)
     assert later.t_ns == DT_NS + 25_000_000

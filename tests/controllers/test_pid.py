@@ -20,7 +20,8 @@ from hil.controllers.pid import (
     pid_command,
     pid_integrate,
 )
-from hil.model.vessel import ENTERPRISE_I, hydro_force
+from hil.model.coefficients import ENTERPRISE_I
+from hil.model.dynamics import hydro_force
 from hil.sim.closed_loop import LowLevelConfig, simulate_closed_loop
 
 F = NDArray[np.float64]

@@ -3,7 +3,7 @@ from pathlib import Path
 import pytest
 
 from hil.adapters.ros import RosConfig
-from hil.core.config import ConfigError, from_table, load_toml
+from hil.core.config import ConfigError, check_keys, from_table, load_toml, number, numbers, table
 from hil.runs.vessel_run import VesselConfig
 
 
@@ -42,12 +42,12 @@ pose_timeout_s = 0.3
 @pytest.mark.parametrize(
     ("text", "message"),
     [
-        ('[ros]\nqos_depht = 3\n', r"unknown key 'ros.qos_depht'"),
-        ('[loop]\nloop_hz = "fast"\n', r"'loop.loop_hz' must be a finite number"),
+        ('[ros]\nqos_depht = 3\n', r"unknown key ros.'qos_depht'"),
+        ('[loop]\nloop_hz = "fast"\n', r"loop.'loop_hz' must be a finite number"),
         ('[loop]\nloop_hz = -5.0\n', r"loop_hz.*must be positive"),
-        ('[ros]\ndomain_id = 1.5\n', r"'ros.domain_id' must be an integer"),
-        ('[ros]\nuse_sim_time = 1\n', r"'ros.use_sim_time' must be true or false"),
-        ('[ros.transform]\nyaw_rad = nan\n', r"'ros.transform.yaw_rad' must be a finite number"),
+        ('[ros]\ndomain_id = 1.5\n', r"ros.'domain_id' must be an integer"),
+        ('[ros]\nuse_sim_time = 1\n', r"ros.'use_sim_time' must be true or false"),
+        ('[ros.transform]\nyaw_rad = nan\n', r"ros.transform.'yaw_rad' must be a finite number"),
         ("ros = 3\n", r"'ros' must be a table"),
         ("scenario = \n", r"not valid TOML"),
     ],
@@ -64,3 +64,21 @@ def test_missing_file_is_a_clear_error(tmp_path: Path) -> None:
 
 def test_nested_defaults_without_tables() -> None:
     assert from_table(RosConfig, {}) == RosConfig()
+
+
+def test_key_checks_name_the_key_like_from_table() -> None:
+    data = {"cell_m": [0.05, "x"], "tau_s": True, "extra_m": 1.0}
+    with pytest.raises(ConfigError, match=r"grid.'cell_m' must be a list of 2 finite numbers"):
+        numbers(data, "cell_m", "grid.", 2)
+    with pytest.raises(ConfigError, match=r"timing.'tau_s' must be a finite number"):
+        number(data, "tau_s", "timing.")
+    with pytest.raises(ConfigError, match=r"missing key grid.'size_m'"):
+        number(data, "size_m", "grid.")
+    assert number(data, "size_m", "grid.", 2.5) == 2.5
+    with pytest.raises(ConfigError, match=r"unknown key grid.'extra_m' .*; mind the unit"):
+        check_keys(data, {"cell_m", "tau_s"}, "grid.", "mind the unit")
+    with pytest.raises(ConfigError, match=r"missing key 'state'"):
+        table(data, "state")
+    assert table(data, "state", required=False) == {}
+    with pytest.raises(ConfigError, match=r"key 'tau_s' must be a table"):
+        table(data, "tau_s")

@@ -6,12 +6,14 @@ import pytest
 from hil.core.samples import (
     Frame,
     ImuSample,
+    ObstacleLayout,
     PoseSample,
-    Rectangle,
     SampleError,
     ThrusterCommand,
     VelocityReference,
+    obstacle_rect,
 )
+from hil.core.shapes import Rect
 
 
 @pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
@@ -41,8 +43,18 @@ def test_thruster_command_outside_unit_range_is_refused() -> None:
     assert stop.t_ns == 7
 
 
-def test_rectangle_extent_and_shift() -> None:
-    with pytest.raises(SampleError, match="empty extent"):
-        Rectangle(1.0, 1.0, 0.0, 1.0)
-    moved = Rectangle(0.0, 1.0, 0.0, 2.0).shifted(0.5, -1.0)
-    assert moved == Rectangle(0.5, 1.5, -1.0, 1.0)
+@pytest.mark.parametrize(
+    ("rect", "match"),
+    [(Rect(1.0, 1.0, 0.0, 1.0), "empty extent"), (Rect(0.0, math.nan, 0.0, 1.0), "non-finite")],
+)
+def test_layout_refuses_empty_or_non_finite_obstacles(rect: Rect, match: str) -> None:
+    with pytest.raises(SampleError, match=match):
+        ObstacleLayout(0, (Rect(0.0, 1.0, 0.0, 1.0), rect))
+    with pytest.raises(SampleError, match=match):
+        obstacle_rect(rect.x_min_m, rect.x_max_m, rect.y_min_m, rect.y_max_m)
+
+
+def test_obstacle_rect_is_the_shape_rect() -> None:
+    rect = obstacle_rect(0.0, 1.0, 0.0, 2.0)
+    assert rect == Rect(0.0, 1.0, 0.0, 2.0)
+    assert ObstacleLayout(0, (rect.translate(0.5, -1.0),)).obstacles == (Rect(0.5, 1.5, -1.0, 1.0),)

@@ -14,6 +14,7 @@ from hil.model.thrusters import (
     ThrusterParams,
     Thrusters,
     ThrusterState,
+    throttle_for_slew,
     thrust_matrix,
     thruster_force,
     thruster_update,
@@ -136,3 +137,9 @@ def test_bad_shapes_and_params_rejected() -> None:
 
 def test_max_thrust() -> None:
     np.testing.assert_allclose(VOYAGER_THRUSTERS.max_thrust_n(), [1.8403, 1.03, 1.03])
+
+
+def test_throttle_for_slew() -> None:
+    u = np.array([0.5, 0.8, 0.8])
+    out = throttle_for_slew(u, np.array([0.0, 0.0]), np.array([math.pi / 3, 2.0]))
+    np.testing.assert_allclose(out, [0.5, 0.4, 0.0], atol=1e-12)

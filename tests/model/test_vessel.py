@@ -1,4 +1,4 @@
-"""Tests of the 3-DOF vessel model against closed forms and numpy twins."""
+"""The vessel: integration against closed forms, and the checks of its Python face."""
 
 from __future__ import annotations
 
@@ -7,157 +7,16 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from numpy.typing import NDArray
 
-from hil.model.errors import (
-    NonFiniteForceError,
-    StateShapeError,
-    VesselConfigError,
-)
-from hil.model.vessel import (
-    ENTERPRISE_I,
-    Integrator,
-    Vessel,
-    VesselParams,
-    VesselState,
-    acceleration,
-    coriolis_matrix,
-    damping_matrix,
-    euler_step,
-    hydro_force,
-    rk4_step,
-    simulate_kernel,
-)
-
-F = NDArray[np.float64]
-P = ENTERPRISE_I
-M_INV, COEF = P.kernel_arrays()
-M = P.mass_matrix()
-
-# Operating range of the paper (input set U1), widened a little.
-U_RANGE = (-0.15, 0.25)
-V_RANGE = (-0.15, 0.15)
-R_RANGE = (-0.3, 0.3)
-
-
-# ---- numpy twins, written from VESSEL.md independently of the kernels ----
-
-
-def c_twin(nu: F) -> F:
-    u, v, r = nu
-    m, xg = P.m_kg, P.xg_m
-    c13 = (-m * xg + P.y_rdot) * r + (-m + P.y_vdot) * v
-    c23 = (m - P.x_udot) * u
-    return np.array([[0.0, 0.0, c13], [0.0, 0.0, c23], [-c13, -c23, 0.0]])
-
-
-def d_twin(nu: F) -> F:
-    u, v, r = nu
-    p = P
-    d11 = -p.xu - p.xuu * abs(u) - p.xuuu * u**2
-    d22 = -p.yv - p.yvv * abs(v) - p.yvvv * v**2 - p.yrv * abs(r)
-    d23 = -p.yr - p.yrr * abs(r) - p.yrrr * r**2 - p.yvr * abs(v)
-    d32 = -p.nv - p.nvv * abs(v) - p.nvvv * v**2 - p.nrv * abs(r)
-    d33 = -p.nr - p.nrr * abs(r) - p.nrrr * r**2 - p.nvr * abs(v)
-    return np.array([[d11, 0.0, 0.0], [0.0, d22, d23], [0.0, d32, d33]])
-
-
-def accel_twin(nu: F, force: F) -> F:
-    out = np.linalg.solve(M, force - (c_twin(nu) + d_twin(nu)) @ nu)
-    return np.asarray(out, dtype=np.float64)
-
-
-def rot(psi: float) -> F:
-    c, s = math.cos(psi), math.sin(psi)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def random_nu(rng: np.random.Generator) -> F:
-    return np.array([rng.uniform(*U_RANGE), rng.uniform(*V_RANGE), rng.uniform(*R_RANGE)])
-
-
-# ---- parameters ----
-
-
-def test_mass_matrix_matches_published() -> None:
-    expected = np.array([[16.11, 0.0, 0.0], [0.0, 24.11, 0.5291], [0.0, 0.5291, 2.76]])
-    np.testing.assert_allclose(M, expected, atol=1e-3)
-
-
-@pytest.mark.parametrize(
-    ("change", "match"),
-    [
-        ({"m_kg": -14.11}, "mass m_kg must be positive, got -14.11"),
-        ({"iz_kgm2": 0.0}, "inertia iz_kgm2 must be positive"),
-        ({"iz_kgm2": 0.01, "n_rdot": 0.0}, "not positive definite"),
-        ({"y_rdot": 1.0}, "must be symmetric"),
-        ({"xu": math.nan}, "xu must be finite"),
-    ],
-)
-def test_invalid_configuration_refused(change: dict[str, float], match: str) -> None:
-    with pytest.raises(VesselConfigError, match=match):
-        replace(P, **change)  # type: ignore[arg-type]
+from hil.model.dynamics import Integrator, euler_step, hydro_force
+from hil.model.errors import NonFiniteForceError, StateShapeError, VesselConfigError
+from hil.model.vessel import Vessel, VesselState
+from tests.model.twins import COEF, M_INV, F, M, P, accel_twin, rot
 
 
 def test_invalid_dt_refused() -> None:
     with pytest.raises(VesselConfigError, match="dt_s"):
         Vessel(dt_s=0.0)
-
-
-# ---- kernels against numpy twins ----
-
-
-def test_kernels_match_numpy_twins() -> None:
-    rng = np.random.default_rng(1)
-    for _ in range(50):
-        nu = random_nu(rng)
-        force = rng.normal(size=3)
-        np.testing.assert_allclose(coriolis_matrix(COEF, nu), c_twin(nu), atol=1e-14)
-        np.testing.assert_allclose(damping_matrix(COEF, nu), d_twin(nu), atol=1e-14)
-        np.testing.assert_allclose(
-            hydro_force(COEF, nu), (c_twin(nu) + d_twin(nu)) @ nu, atol=1e-14
-        )
-        np.testing.assert_allclose(
-            acceleration(M_INV, COEF, nu, force), accel_twin(nu, force), atol=1e-12
-        )
-
-
-def test_euler_step_matches_paper_update() -> None:
-    rng = np.random.default_rng(2)
-    for _ in range(20):
-        eta = np.array([rng.normal(), rng.normal(), rng.uniform(-math.pi, math.pi)])
-        nu = random_nu(rng)
-        force = rng.normal(size=3)
-        eta1, nu1 = euler_step(M_INV, COEF, eta, nu, force, 0.01)
-        eta_twin = eta + 0.01 * rot(eta[2]) @ nu
-        eta_twin[2] = (eta_twin[2] + math.pi) % (2 * math.pi) - math.pi
-        np.testing.assert_allclose(eta1, eta_twin, atol=1e-12)
-        np.testing.assert_allclose(nu1, nu + 0.01 * accel_twin(nu, force), atol=1e-12)
-
-
-def test_rk4_step_matches_numpy_twin() -> None:
-    rng = np.random.default_rng(3)
-    eta = np.array([0.3, -0.2, 3.1])
-    nu = random_nu(rng)
-    force = rng.normal(size=3)
-    dt = 0.05
-
-    def f(x: F) -> F:
-        return np.concatenate([rot(x[2]) @ x[3:], accel_twin(x[3:], force)])
-
-    x = np.concatenate([eta, nu])
-    k1 = f(x)
-    k2 = f(x + 0.5 * dt * k1)
-    k3 = f(x + 0.5 * dt * k2)
-    k4 = f(x + dt * k3)
-    x1 = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-    eta1, nu1 = rk4_step(M_INV, COEF, eta, nu, force, dt)
-    np.testing.assert_allclose(nu1, x1[3:], atol=1e-12)
-    np.testing.assert_allclose(eta1[:2], x1[:2], atol=1e-12)
-    assert eta1[2] == pytest.approx((x1[2] + math.pi) % (2 * math.pi) - math.pi, abs=1e-12)
-
-
-# ---- physics ----
 
 
 @pytest.mark.parametrize("integrator", list(Integrator))
@@ -166,38 +25,6 @@ def test_zero_force_from_rest_stays_at_rest(integrator: Integrator) -> None:
     eta, nu = vessel.simulate(VesselState.at_rest(1.0, -2.0, 0.5), np.zeros((3000, 3)))
     assert np.all(nu == 0.0)
     assert np.all(eta == np.array([1.0, -2.0, 0.5]))
-
-
-def test_linearization_is_stable() -> None:
-    eig = np.linalg.eigvals(M_INV @ damping_matrix(COEF, np.zeros(3)))
-    assert np.all(eig.real > 0.0)
-    np.testing.assert_allclose(np.sort(eig.real), [0.041, 0.061, 0.628], atol=1e-3)
-
-
-def test_damping_not_strictly_dissipative_as_documented() -> None:
-    # What the docstring says: nu^T D nu < 0 where v and r have opposite signs.
-    nu = np.array([0.0, -0.2, 0.4])
-    assert nu @ damping_matrix(COEF, nu) @ nu == pytest.approx(-0.159, abs=1e-3)
-    sym = damping_matrix(COEF, np.zeros(3))
-    eig = np.linalg.eigvalsh(0.5 * (sym + sym.T))
-    np.testing.assert_allclose(eig, [-2.01, 0.66, 5.26], atol=0.01)
-
-
-def test_coasts_to_rest_from_anywhere_in_operating_range() -> None:
-    rng = np.random.default_rng(4)
-    corners = [np.array([u, v, r]) for u in U_RANGE for v in V_RANGE for r in R_RANGE]
-    starts = corners + [random_nu(rng) for _ in range(12)]
-    force = np.zeros((4000, 3))  # 400 s at 0.1 s (RK4)
-    for i, nu0 in enumerate(starts):
-        _, nu = simulate_kernel(M_INV, COEF, np.zeros(3), nu0, force, 0.1, 1)
-        energy = 0.5 * np.einsum("ki,ij,kj->k", nu, M, nu)
-        assert np.all(np.isfinite(nu))
-        if i < len(corners):
-            # D is not dissipative everywhere, so energy may grow at first (up to
-            # 8.7 % from these corners, measured) before it decays.
-            assert energy.max() <= 1.1 * energy[0]
-        assert np.linalg.norm(nu[-1]) < 1e-6
-        assert energy[-1] < 1e-8 * energy[0]
 
 
 def test_kinetic_energy_conserved_without_damping_under_rk4() -> None:
@@ -291,9 +118,6 @@ def test_kinematics_match_closed_form(nu: F, psi0: float) -> None:
     assert np.all((eta[:, 2] >= -math.pi) & (eta[:, 2] < math.pi))
 
 
-# ---- bad input ----
-
-
 @pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
 def test_non_finite_force_rejected(bad: float) -> None:
     vessel = Vessel()
@@ -324,8 +148,3 @@ def test_step_matches_kernel_and_python_api() -> None:
     np.testing.assert_array_equal(nxt.eta, eta)
     np.testing.assert_array_equal(nxt.nu, nu)
     np.testing.assert_allclose(vessel.acceleration(state.nu, tau, b), accel_twin(state.nu, tau + b))
-
-
-def test_params_kernel_arrays_respect_damping_switch() -> None:
-    _, coef = VesselParams(damping_enabled=False).kernel_arrays()
-    assert np.all(damping_matrix(coef, np.array([0.2, 0.1, 0.3])) == 0.0)

@@ -31,7 +31,7 @@ from hil.replay.replayer import (
 )
 from hil.runs.sim_run import spec_from_json, spec_to_json
 from hil.runtime.assembly import layout_from_scenario
-from hil.scenarios.scenario import TrackingMargin, load_scenario
+from hil.scenarios import TrackingMargin, load_scenario
 from tests.bag.bag_streams import foreign_bag_paths, tree_digest
 
 LOGS = Path(__file__).resolve().parents[2] / "logs"

@@ -6,7 +6,7 @@ from hil.runs.campaign import CampaignStats, StartRegion, campaign_specs, draw_s
 from hil.runs.sim_run import SimRunSpec, synthesizer_for
 from hil.runs.summary import RunSummary, TrackingError
 from hil.runtime.assembly import LayoutSolver, layout_from_scenario
-from hil.scenarios.scenario import load_scenario
+from hil.scenarios import load_scenario
 
 
 def test_starts_are_winning_seeded_and_inside_the_region() -> None:

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from hil.runs.clearance import hull_clearance_series
-from hil.scenarios.scenario import load_scenario
+from hil.scenarios import load_scenario
 
 
 def test_matches_the_scalar_geometry_on_random_poses() -> None:

@@ -20,7 +20,7 @@ from hil.bag.reader import BagReader
 from hil.core.records import Decision
 from hil.runs.sim_run import SimRunSpec, run_in_sim, spec_from_json
 from hil.runtime.events import EventCode
-from hil.runtime.loop import LoopConfig
+from hil.runtime.settings import LoopConfig
 from hil.runtime.trace import MemoryLog
 
 # Re-synthesize only when obstacles move: the timer adds nothing in a static arena

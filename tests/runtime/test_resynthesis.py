@@ -2,12 +2,13 @@ import threading
 
 import pytest
 
-from hil.core.samples import ObstacleLayout, Rectangle
+from hil.core.samples import ObstacleLayout
+from hil.core.shapes import Rect
 from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer
 
 
 def _layout(t_ns: int) -> ObstacleLayout:
-    return ObstacleLayout(t_ns, (Rectangle(0.0, 1.0, 0.0, 1.0),))
+    return ObstacleLayout(t_ns, (Rect(0.0, 1.0, 0.0, 1.0),))
 
 
 def test_inline_results_are_immediate_and_versioned() -> None:

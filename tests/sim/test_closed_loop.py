@@ -12,9 +12,10 @@ from numpy.typing import NDArray
 from hil.controllers.allocation import MinimumMagnitudeAzimuthAllocator
 from hil.controllers.observer import Ekf
 from hil.controllers.pid import PidOutput, VelocityPid
+from hil.model.environment import EnvironmentalLoad
 from hil.model.errors import StateShapeError
 from hil.model.thrusters import Thrusters, ThrusterState, throttle_for_slew
-from hil.model.vessel import EnvironmentalLoad, Vessel, VesselState
+from hil.model.vessel import Vessel, VesselState
 from hil.sim.closed_loop import (
     AllocatorKind,
     ClosedLoopResult,

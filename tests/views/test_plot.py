@@ -11,7 +11,7 @@ import pytest
 from hil.bag.run_data import load_run
 from hil.commands import plot as plot_command
 from hil.runs.sim_run import SimRunSpec, run_in_sim
-from hil.runtime.loop import LoopConfig
+from hil.runtime.settings import LoopConfig
 from hil.views.controller_view import scenario_for
 from hil.views.plot import DEFAULT_DPI, FIGURE_SIZE_IN, save_run_figure
 

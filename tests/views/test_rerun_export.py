@@ -21,9 +21,9 @@ from hil.bag.reader import BagReader
 from hil.bag.run_data import RunData, load_run
 from hil.core.samples import PoseSample, VelocityReference
 from hil.runs.sim_run import SimRunSpec, run_in_sim
-from hil.runtime.loop import LoopConfig
+from hil.runtime.settings import LoopConfig
 from hil.runtime.trace import MemoryLog
-from hil.scenarios.scenario import Scenario, load_scenario
+from hil.scenarios import Scenario, load_scenario
 from hil.views.controller_view import controller_view, scenario_for
 from hil.views.rerun_export import (
     TIMELINE,

@@ -19,7 +19,8 @@ from numpy.typing import NDArray
 
 from hil.controllers.symbolic.errors import GridError
 from hil.core.geometry import wrap_angle
-from hil.scenarios.scenario import Polygon, Rect, Scenario, Shape
+from hil.core.shapes import Polygon, Rect, Shape
+from hil.scenarios import Scenario
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]

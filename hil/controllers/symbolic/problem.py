@@ -9,7 +9,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hil.controllers.symbolic.grid import Grid, obstacle_mask, target_mask
-from hil.scenarios.scenario import Scenario, Shape
+from hil.core.shapes import Shape
+from hil.scenarios import Scenario
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]

@@ -32,7 +32,7 @@ from hil.controllers.symbolic.sweep import (
     init_bits,
     viable_bits,
 )
-from hil.scenarios.scenario import Shape
+from hil.core.shapes import Shape
 
 BoolArray = NDArray[np.bool_]
 I32Array = NDArray[np.int32]

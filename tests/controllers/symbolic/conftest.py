@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from hil.controllers.symbolic import Controller, SymbolicProblem, Synthesizer, Tables, tables_for
-from hil.scenarios.scenario import Scenario, TrackingMargin, load_scenario
+from hil.scenarios import Scenario, TrackingMargin, load_scenario
 
 
 @pytest.fixture(scope="session")

@@ -17,7 +17,8 @@ import pytest
 from numpy.typing import NDArray
 
 from hil.controllers.symbolic import Controller, SymbolicProblem, synthesize
-from hil.scenarios.scenario import Rect, Scenario, TrackingMargin
+from hil.core.shapes import Rect
+from hil.scenarios import Scenario, TrackingMargin
 
 FloatArray = NDArray[np.float64]
 

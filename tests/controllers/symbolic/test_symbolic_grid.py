@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from hil.controllers.symbolic import Grid, GridError, obstacle_mask, target_mask
-from hil.scenarios.scenario import Polygon, Rect
+from hil.core.shapes import Polygon, Rect
 
 GRID = Grid(0.0, 0.0, 1.0, 1.0, 4, 3, 8)
 

@@ -23,7 +23,8 @@ from hil.controllers.symbolic import (
     tables_for,
 )
 from hil.controllers.symbolic.reference import dense_fixed_point
-from hil.scenarios.scenario import Rect, Scenario
+from hil.core.shapes import Rect
+from hil.scenarios import Scenario
 
 BoolArray = NDArray[np.bool_]
 

@@ -1,0 +1,52 @@
+"""Settings of the control loop: its rate, decision period and fault thresholds."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+__all__ = ["NS_PER_S", "LoopConfig"]
+
+NS_PER_S = 1_000_000_000
+
+
+@dataclass(frozen=True, slots=True)
+class LoopConfig:
+    """Timing and fault thresholds of the loop.
+
+    Attributes:
+        loop_hz: Rate of the low-level loop (Hz); 20 Hz as on the vessel.
+        decision_period_s: Period of symbolic decisions, the abstraction's tau (s).
+        resynthesis_period_s: Re-synthesize on this timer as well as on obstacle
+            changes (s); None for changes only.
+        pose_timeout_s: A pose older than this puts the loop on hold (s).
+        dock_hold_s: Time to stay in the target before the run counts as docked (s).
+        max_duration_s: The run stops with a timeout after this long (s).
+        max_thruster_failures: Consecutive delivery failures before stopping.
+    """
+
+    loop_hz: float = 20.0
+    decision_period_s: float = 2.0
+    resynthesis_period_s: float | None = 2.0
+    pose_timeout_s: float = 0.5
+    dock_hold_s: float = 4.0
+    max_duration_s: float = 600.0
+    max_thruster_failures: int = 20
+
+    def __post_init__(self) -> None:
+        for name in ("loop_hz", "decision_period_s", "pose_timeout_s", "max_duration_s"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"loop config {name!r} must be positive, got {value!r}")
+        if self.dock_hold_s < 0:
+            raise ValueError(f"loop config 'dock_hold_s' must be >= 0, got {self.dock_hold_s!r}")
+        if self.resynthesis_period_s is not None and not self.resynthesis_period_s > 0:
+            raise ValueError(
+                "loop config 'resynthesis_period_s' must be positive or None, "
+                f"got {self.resynthesis_period_s!r}"
+            )
+
+    @property
+    def period_ns(self) -> int:
+        """Loop period (ns)."""
+        return round(NS_PER_S / self.loop_hz)

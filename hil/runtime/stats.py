@@ -1,0 +1,42 @@
+"""What the control loop counts during a run, for the run's summary."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["RunStats"]
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass
+class RunStats:
+    """Counters and time series the loop keeps for the run's summary.
+
+    Series are time-major lists, one row per tick under control: `t_ns`,
+    `eta_hat` (3,), `nu_hat` (3,), `nu_ref` (3,); `tick_wall_ns` holds the clock
+    time at which every tick started (for the period jitter).
+    """
+
+    start_ns: int = 0
+    end_ns: int = 0
+    overruns: int = 0
+    tick_wall_ns: list[int] = field(default_factory=list)
+    decisions: int = 0
+    resyntheses: int = 0
+    synthesis_seconds: list[float] = field(default_factory=list)
+    failed_syntheses: int = 0
+    rejected_samples: int = 0
+    pose_losses: int = 0
+    thruster_failures: int = 0
+    not_winning_decisions: int = 0
+    target_reached_ns: int | None = None
+    docked_ns: int | None = None
+    end_reason: str = ""
+    t_ns: list[int] = field(default_factory=list)
+    eta_hat: list[FloatArray] = field(default_factory=list)
+    nu_hat: list[FloatArray] = field(default_factory=list)
+    nu_ref: list[FloatArray] = field(default_factory=list)

@@ -1,0 +1,241 @@
+"""Read a scenario from parsed TOML: every key checked, every message naming it.
+
+Keys and types are checked by :mod:`hil.core.config` (the tables that are one
+dataclass, ``margin`` and ``hull``, by :func:`~hil.core.config.from_table`); this
+module adds what only a scenario knows: cells dividing the arena, input grids,
+heading cells dividing the circle, plausible units, shapes told apart by their
+keys, and sets that fit together (:func:`~hil.scenarios.scenario.check_sets`).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from hil.core.config import ConfigError, check_keys, from_table, number, numbers, table
+from hil.core.shapes import Polygon, Rect, Shape
+from hil.scenarios.errors import ScenarioError
+from hil.scenarios.scenario import (
+    Hull,
+    InputAxis,
+    Obstacle,
+    Scenario,
+    Target,
+    TrackingMargin,
+    check_sets,
+)
+
+__all__ = ["parse_scenario"]
+
+_UNITS = "keys carry their unit (_m, _s, _mps, _radps, _rad)"
+
+_TOP_KEYS = {
+    "name",
+    "description",
+    "state",
+    "grid",
+    "inputs",
+    "timing",
+    "margin",
+    "hull",
+    "abstraction",
+    "obstacles",
+    "target",
+}
+
+
+def _keys(data: dict[str, Any], allowed: set[str], where: str) -> None:
+    check_keys(data, allowed, where, _UNITS)
+
+
+def _interval(data: dict[str, Any], key: str, where: str) -> tuple[float, float]:
+    lo, hi = numbers(data, key, where, 2)
+    if not hi > lo:
+        raise ScenarioError(f"key {where}{key!r} is empty: {[lo, hi]!r} needs min < max")
+    return lo, hi
+
+
+def _divides(length: float, step: float) -> bool:
+    n = length / step
+    return abs(n - round(n)) < 1e-6 and round(n) >= 1
+
+
+def _shape(data: dict[str, Any], where: str) -> Shape:
+    if "center_m" in data:
+        allowed = {"name", "center_m", "size_m", "angle_rad", "inflation_m", "deflation_m"}
+        _keys(data, allowed, where)
+        cx, cy = numbers(data, "center_m", where, 2)
+        length, width = numbers(data, "size_m", where, 2)
+        if not (length > 0.0 and width > 0.0):
+            raise ScenarioError(f"key {where}'size_m' is empty: {[length, width]!r}")
+        return Polygon.rotated_rect(
+            (cx, cy), (length, width), number(data, "angle_rad", where, 0.0)
+        )
+    if "vertices_m" in data:
+        _keys(data, {"name", "vertices_m", "inflation_m", "deflation_m"}, where)
+        raw = data["vertices_m"]
+        if not isinstance(raw, list) or not all(
+            isinstance(p, list) and len(p) == 2 and all(isinstance(c, int | float) for c in p)
+            for p in raw
+        ):
+            raise ScenarioError(
+                f"key {where}'vertices_m' must be a list of [x, y] pairs, got {raw!r}"
+            )
+        poly = Polygon(tuple((float(p[0]), float(p[1])) for p in raw))
+        if poly.is_empty():
+            raise ScenarioError(
+                f"key {where}'vertices_m' is not a convex counter-clockwise polygon "
+                f"with area: {raw!r}"
+            )
+        return poly
+    _keys(data, {"name", "x_m", "y_m", "inflation_m", "deflation_m"}, where)
+    x = _interval(data, "x_m", where)
+    y = _interval(data, "y_m", where)
+    return Rect(x[0], x[1], y[0], y[1])
+
+
+def _axis(data: dict[str, Any], key: str, where: str) -> InputAxis:
+    lo, hi, step = numbers(data, key, where, 3)
+    if not ((step > 0.0 and hi >= lo and _divides(hi - lo, step)) or hi == lo):
+        raise ScenarioError(
+            f"key {where}{key!r} = {[lo, hi, step]!r}: need [min, max, step] "
+            "with step > 0 dividing max - min"
+        )
+    return InputAxis(lo, hi, step)
+
+
+def parse_scenario(data: dict[str, Any], default_name: str = "scenario") -> Scenario:
+    """Build a scenario from parsed TOML data, validating every key.
+
+    Args:
+        data: The TOML document as :func:`tomllib.loads` returns it.
+        default_name: Name when the document has no ``name`` key.
+
+    Raises:
+        ScenarioError: A key is missing, unknown, of the wrong type or inconsistent.
+    """
+    try:
+        return _parse(data, default_name)
+    except ScenarioError:
+        raise
+    except ConfigError as err:
+        raise ScenarioError(str(err)) from err
+
+
+def _heading_cells(grid: dict[str, Any]) -> int:
+    if "heading_cells" in grid:
+        heading_cells = grid["heading_cells"]
+        if (
+            isinstance(heading_cells, bool)
+            or not isinstance(heading_cells, int)
+            or heading_cells < 1
+        ):
+            raise ScenarioError(
+                f"key grid.'heading_cells' must be a positive integer, got {heading_cells!r}"
+            )
+        return heading_cells
+    width = number(grid, "heading_cell_rad", "grid.")
+    if not (width > 0.0 and _divides(2.0 * math.pi, width)):
+        raise ScenarioError(f"key grid.'heading_cell_rad' = {width!r} does not divide 2 pi")
+    return round(2.0 * math.pi / width)
+
+
+def _parse(data: dict[str, Any], default_name: str) -> Scenario:
+    _keys(data, _TOP_KEYS, "")
+    state = table(data, "state")
+    _keys(state, {"x_m", "y_m"}, "state.")
+    x_range = _interval(state, "x_m", "state.")
+    y_range = _interval(state, "y_m", "state.")
+
+    grid = table(data, "grid")
+    _keys(grid, {"cell_m", "heading_cells", "heading_cell_rad"}, "grid.")
+    cell = numbers(grid, "cell_m", "grid.", 2)
+    if not (cell[0] > 0.0 and cell[1] > 0.0):
+        raise ScenarioError(f"key grid.'cell_m' must be positive, got {list(cell)!r}")
+    if not _divides(x_range[1] - x_range[0], cell[0]):
+        raise ScenarioError(
+            f"key grid.'cell_m' x width {cell[0]!r} does not divide state.x_m {list(x_range)!r}"
+        )
+    if not _divides(y_range[1] - y_range[0], cell[1]):
+        raise ScenarioError(
+            f"key grid.'cell_m' y width {cell[1]!r} does not divide state.y_m {list(y_range)!r}"
+        )
+    heading_cells = _heading_cells(grid)
+
+    inputs = table(data, "inputs")
+    _keys(inputs, {"surge_mps", "sway_mps", "yaw_rate_radps"}, "inputs.")
+    surge = _axis(inputs, "surge_mps", "inputs.")
+    sway = _axis(inputs, "sway_mps", "inputs.")
+    yaw = _axis(inputs, "yaw_rate_radps", "inputs.")
+    if max(abs(yaw.min), abs(yaw.max)) > math.pi:
+        raise ScenarioError(
+            f"key inputs.'yaw_rate_radps' = {[yaw.min, yaw.max]!r} exceeds pi rad/s: degrees given?"
+        )
+
+    timing = table(data, "timing")
+    _keys(timing, {"tau_s"}, "timing.")
+    tau = number(timing, "tau_s", "timing.")
+    if not 0.0 < tau <= 60.0:
+        raise ScenarioError(
+            f"key timing.'tau_s' = {tau!r} must be in (0, 60] s (milliseconds given?)"
+        )
+
+    margin = from_table(TrackingMargin, table(data, "margin", required=False), "margin.",
+                        note=_UNITS)
+    for key, value in (
+        ("surge_mps", margin.surge_mps),
+        ("sway_mps", margin.sway_mps),
+        ("yaw_rate_radps", margin.yaw_rate_radps),
+    ):
+        if value < 0.0:
+            raise ScenarioError(f"key margin.{key!r} must be >= 0, got {value!r}")
+
+    hull = from_table(Hull, table(data, "hull", required=False), "hull.", note=_UNITS)
+    if not (hull.length_m > 0.0 and hull.beam_m > 0.0):
+        raise ScenarioError(f"key 'hull' must have positive sizes, got {hull!r}")
+
+    abstraction = table(data, "abstraction", required=False)
+    _keys(abstraction, {"obstacle_inflation_m", "target_deflation_m"}, "abstraction.")
+    inflation = number(abstraction, "obstacle_inflation_m", "abstraction.", 0.0)
+    deflation = number(abstraction, "target_deflation_m", "abstraction.", 0.0)
+    if inflation < 0.0 or deflation < 0.0:
+        raise ScenarioError(f"keys abstraction.* must be >= 0, got {abstraction!r}")
+
+    raw_obstacles = data.get("obstacles", [])
+    if not isinstance(raw_obstacles, list):
+        raise ScenarioError(f"key 'obstacles' must be an array of tables, got {raw_obstacles!r}")
+    obstacles = []
+    for n, raw in enumerate(raw_obstacles):
+        where = f"obstacles[{n}]."
+        if not isinstance(raw, dict):
+            raise ScenarioError(f"key {where[:-1]!r} must be a table, got {raw!r}")
+        obstacles.append(
+            Obstacle(
+                str(raw.get("name", f"O{n + 1}")),
+                _shape(raw, where),
+                number(raw, "inflation_m", where, inflation),
+            )
+        )
+    target_data = table(data, "target")
+    target = Target(
+        _shape(target_data, "target."), number(target_data, "deflation_m", "target.", deflation)
+    )
+
+    scenario = Scenario(
+        name=str(data.get("name", default_name)),
+        description=str(data.get("description", "")),
+        x_range_m=x_range,
+        y_range_m=y_range,
+        cell_m=(cell[0], cell[1]),
+        heading_cells=int(heading_cells),
+        surge=surge,
+        sway=sway,
+        yaw_rate=yaw,
+        tau_s=tau,
+        margin=margin,
+        hull=hull,
+        obstacles=tuple(obstacles),
+        target=target,
+    )
+    check_sets(scenario)
+    return scenario

@@ -1,0 +1,90 @@
+"""Scenario parsing: validation errors naming the key, shapes told apart by their keys."""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from hil.core.shapes import Polygon
+from hil.scenarios import ScenarioError, parse_scenario
+
+PAPER_TOML = Path(__file__).parents[2] / "hil" / "scenarios" / "paper.toml"
+
+
+def _paper_data() -> dict[str, Any]:
+    return tomllib.loads(PAPER_TOML.read_text(encoding="utf-8"))
+
+
+def _edit(path: list[str], value: Any) -> dict[str, Any]:
+    data = _paper_data()
+    node: Any = data
+    for key in path[:-1]:
+        node = node[key] if not key.isdigit() else node[int(key)]
+    if value is KeyError:
+        del node[path[-1]]
+    else:
+        node[path[-1]] = value
+    return data
+
+
+@pytest.mark.parametrize(
+    ("path", "value", "match"),
+    [
+        (["state"], KeyError, "missing key 'state'"),
+        (["state", "x_m"], [1.0, 1.0], r"state.'x_m' is empty"),
+        (["state", "y_m"], [0.0, "3"], r"state.'y_m' must be a list of 2 finite numbers"),
+        (["grid", "cell_m"], [0.03, 0.05], r"grid.'cell_m' x width 0.03 does not divide"),
+        (["grid", "heading_cells"], 0, r"grid.'heading_cells' must be a positive integer"),
+        (["grid", "heading_cells"], KeyError, r"missing key grid.'heading_cell_rad'"),
+        (["grid", "heading_cell_deg"], 6.0, r"unknown key grid.'heading_cell_deg'"),
+        (["inputs", "surge_mps"], [-0.1, 0.2, 0.07], r"inputs.'surge_mps'.*step > 0 dividing"),
+        (
+            ["inputs", "yaw_rate_radps"],
+            [-20.0, 20.0, 10.0],
+            r"inputs.'yaw_rate_radps'.*degrees given",
+        ),
+        (["timing", "tau_s"], 2000.0, r"timing.'tau_s' = 2000.0 .*milliseconds given"),
+        (["timing", "tau_ms"], 2000, r"unknown key timing.'tau_ms'"),
+        (["margin", "surge_mps"], -0.01, r"margin.'surge_mps' must be >= 0"),
+        (["obstacles", "1", "x_m"], [-3.0, -2.5], r"'target' .* overlaps obstacles\[1\] \('O2'\)"),
+        (["abstraction", "target_deflation_m"], 0.8, r"'target' is empty after deflation by 0.8"),
+        (["target", "x_m"], [10.0, 11.0], r"'target' .* lies outside the state bounds"),
+        (["obstacles"], {"x_m": 1}, r"'obstacles' must be an array of tables"),
+        (["hull", "length_m"], -1.0, r"'hull' must have positive sizes"),
+    ],
+)
+def test_bad_scenarios_name_the_key(path: list[str], value: Any, match: str) -> None:
+    with pytest.raises(ScenarioError, match=match):
+        parse_scenario(_edit(path, value))
+
+
+def test_heading_cell_width_must_divide_the_circle() -> None:
+    data = _edit(["grid", "heading_cells"], KeyError)
+    data["grid"]["heading_cell_rad"] = 0.1
+    with pytest.raises(ScenarioError, match=r"grid.'heading_cell_rad' = 0.1 does not divide 2 pi"):
+        parse_scenario(data)
+    data["grid"]["heading_cell_rad"] = 2 * math.pi / 36
+    assert parse_scenario(data).heading_cells == 36
+
+
+def test_rotated_and_polygon_obstacles_parse() -> None:
+    data = _paper_data()
+    data["obstacles"] = [
+        {"name": "boat", "center_m": [1.0, 1.0], "size_m": [1.0, 0.4], "angle_rad": 0.5},
+        {"name": "tri", "vertices_m": [[3.0, -2.0], [4.0, -2.0], [3.5, -1.0]], "inflation_m": 0.1},
+    ]
+    s = parse_scenario(data)
+    assert isinstance(s.obstacles[0].shape, Polygon)
+    inflated = s.obstacles[1].inflated
+    assert isinstance(inflated, Polygon)
+    # Each edge moved out by 0.1 m: the bottom edge y = -2 becomes y = -2.1.
+    assert min(p[1] for p in inflated.vertices_m) == pytest.approx(-2.1)
+    data["obstacles"] = [{"vertices_m": [[0.0, 0.0], [0.0, 1.0], [1.0, 0.0]]}]  # clockwise
+    with pytest.raises(
+        ScenarioError, match=r"obstacles\[0\].'vertices_m' is not a convex counter-clockwise"
+    ):
+        parse_scenario(data)
