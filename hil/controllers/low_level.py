@@ -125,21 +125,24 @@ def low_level_tick(
         <- alpha. See :mod:`hil.controllers.pid` (Astrom & Hagglund 2006, Sec. 3.5) and
         :mod:`hil.controllers.allocation` (Gezer et al. 2024).
     """
-    s_pid = state[L_PID : L_PID + N_PID_STATE].copy()
-    theta = state[L_THETA : L_THETA + 2].copy()
-    hold = state[L_HOLD : L_HOLD + 2].copy()
-    tau, tau_raw, s_pid = pid_command(a.g, a.m, a.coef, s_pid, nu_ref, nu_hat, a.dt)
+    # Views of the input state: the kernels below return new arrays and leave it alone.
+    theta = state[L_THETA : L_THETA + 2]
+    hold = state[L_HOLD : L_HOLD + 2]
+    tau, tau_raw, s_pid = pid_command(
+        a.g, a.m, a.coef, state[L_PID : L_PID + N_PID_STATE], nu_ref, nu_hat, a.dt
+    )
     if a.kind == 1:
-        u, alpha, xi, theta = mma_allocate(
+        u, alpha, xi, theta_new = mma_allocate(
             a.tp, a.be, a.b_pinv, a.q, theta, tau, hold, a.acfg, a.a_ref, a.aw, a.wq
         )
     else:
         u, alpha, xi = pseudo_inverse_allocate(a.tp, a.b_pinv, tau, hold)
+        theta_new = theta.copy()
     tau_ach = matvec(a.be, xi)
     s_pid = pid_integrate(a.g, a.m, s_pid, nu_ref, nu_hat, tau_raw, tau_ach, a.dt)
     out = np.empty(N_LOW_LEVEL_STATE)
     out[L_PID : L_PID + N_PID_STATE] = s_pid
-    out[L_THETA : L_THETA + 2] = theta
+    out[L_THETA : L_THETA + 2] = theta_new
     out[L_HOLD : L_HOLD + 2] = alpha
     return tau, u, alpha, tau_ach, out
 

@@ -256,7 +256,7 @@ def closed_loop_kernel(
         if k % control_every == 0:
             tau_cmd, u_set, a_set, _, low_state = low_level_tick(low, low_state, nu_ref, nu_hat)
         plant_step(m_inv, coef, low.tp, method, dt, plant, u_set, a_set, b_env[k], trace)
-        tau = trace[TR_TAU : TR_TAU + 3].copy()
+        tau[:] = trace[TR_TAU : TR_TAU + 3]
         row = out[k]
         row[0] = k * dt
         row[1:4] = trace[TR_ETA : TR_ETA + 3]
