@@ -1,5 +1,11 @@
 """Low-level loop benchmark: velocity-tracking error and speed (`python -m bench lowlevel`).
 
+What runs is the code the vessel runs: the compiled closed loop of
+:mod:`hil.sim.closed_loop` calls the low-level tick of :mod:`hil.controllers.low_level`
+(the runtime's ``LowLevel``) and the plant step of :mod:`hil.sim.plant` (the simulated
+world's physics); tests/runtime/test_low_level_pin.py pins it tick for tick to the
+runtime driving the simulated world.
+
 Tracking: references change every 2 s as a random walk on the paper's input grid
 (surge -0.1..0.2 step 0.05 m/s, sway -0.1..0.1 step 0.05 m/s, yaw rate -0.2..0.2 step
 0.1 rad/s; each axis moves at most one grid step per command), simulated with sensor
@@ -7,7 +13,8 @@ noise and the EKF in the loop. The error is nu - nu_ref against the command as i
 Printed beside the paper's tank figures, with the least error the thrust limits allow
 for the same steps (an ideal jerk- and acceleration-limited response, see
 `ideal_step_error`), and a per-axis bound on the error after settling (the part of
-each 2-s window after 1 s), which the symbolic layer's robustness margin can use.
+each 2-s window after 1 s), which the symbolic layer's robustness margin can use: the
+scenario's ``[margin]`` is its maximum, rounded up, printed as a TOML table.
 
 Speed: a 3-minute run (100 Hz physics, sensors + EKF + PID + allocation + vessel) in
 the compiled loop, against the same loop run by the Python interpreter
@@ -31,12 +38,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hil.controllers.allocation_kernels import extended_matrix, force_limits
+from hil.controllers.low_level import AllocatorKind
 from hil.model.coefficients import VesselParams
 from hil.model.dynamics import hydro_force
 from hil.model.environment import EnvironmentalLoad
 from hil.model.thrusters import ThrusterParams
 from hil.sim.closed_loop import (
-    AllocatorKind,
     ClosedLoopResult,
     LowLevelConfig,
     simulate_closed_loop,
@@ -51,6 +58,7 @@ GRID_STEP = np.array([0.05, 0.05, 0.1])
 PAPER = np.array([0.00768, 0.00431, 0.62108])
 AXES = ("surge m/s", "sway m/s", "yaw deg/s")
 SETTLE_AFTER_S = 1.0
+MARGIN_DIGITS = 4  # decimals of the scenario's [margin] entries (m/s, m/s, rad/s)
 
 
 def random_walk_refs(n: int, seed: int) -> F:
@@ -179,6 +187,13 @@ def to_display(x: F) -> F:
     return out
 
 
+def margin_from(worst: F) -> F:
+    """Return the [margin] entries (m/s, m/s, rad/s), shape (3,): `worst` rounded up."""
+    scale = 10.0**MARGIN_DIGITS
+    out: F = np.ceil(np.asarray(worst) * scale - 1e-9) / scale
+    return out
+
+
 def fmt_row(label: str, values: F, digits: int = 5) -> str:
     cells = "".join(f"{v:>14.{digits}f}" for v in values)
     return f"  {label:<44}{cells}"
@@ -229,7 +244,11 @@ def main(argv: list[str] | None = None) -> int:
     compile_s = time.perf_counter() - t0
 
     print(
-        f"low-level loop: {args.seeds} seeds x {n_ref * period:.0f} s, references every "
+        "low-level loop: the code the vessel runs (hil.controllers.low_level.low_level_tick, "
+        "the runtime's LowLevel) on the simulated plant (hil.sim.plant.plant_step)"
+    )
+    print(
+        f"  {args.seeds} seeds x {n_ref * period:.0f} s, references every "
         f"{period:.0f} s (random walk on the paper's grid), sensors + EKF on, "
         f"PID/allocation {1.0 / cfg.control_period_s:.0f} Hz, physics {1.0 / cfg.dt_s:.0f} Hz"
     )
@@ -307,6 +326,16 @@ def main(argv: list[str] | None = None) -> int:
     print(f"  {'':<44}{header}")
     print(fmt_row("99th percentile", to_display(p99)))
     print(fmt_row("max", to_display(worst)))
+    margin = margin_from(worst)
+    print(
+        f"\nscenario margin this measures (max above in SI units, rounded up to "
+        f"{MARGIN_DIGITS} decimals;\n  {args.seeds} seeds x {n_ref * period:.0f} s, "
+        f"`python -m bench lowlevel --seconds {args.seconds:g} --seeds {args.seeds}`):"
+    )
+    print("  [margin]")
+    print(f"  surge_mps = {margin[0]:.{MARGIN_DIGITS}f}")
+    print(f"  sway_mps = {margin[1]:.{MARGIN_DIGITS}f}")
+    print(f"  yaw_rate_radps = {margin[2]:.{MARGIN_DIGITS}f}")
 
     # ---- speed ----
     long_refs = random_walk_refs(round(180.0 / period), 7)
@@ -351,6 +380,7 @@ def main(argv: list[str] | None = None) -> int:
                     "bound_idle_rms": to_display(bound_idle).tolist(),
                     "settled_p99": to_display(p99).tolist(),
                     "settled_max": to_display(worst).tolist(),
+                    "margin_si": margin.tolist(),
                     "loop_s": best,
                     "realtime_factor": sim_s / best,
                     "interpreted_s": base_s,

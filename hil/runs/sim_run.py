@@ -23,16 +23,14 @@ from numpy.typing import NDArray
 
 from hil.adapters.sim import ObstacleMotion, SimConfig, SimWorld, ThrusterOutage
 from hil.bag.recorder import Recorder, RunInfo
-from hil.controllers.allocation import MinimumMagnitudeAzimuthAllocator
-from hil.controllers.pid import VelocityPid
 from hil.controllers.symbolic import Synthesizer, tables_for
 from hil.controllers.symbolic.grid import Grid
 from hil.runs.summary import RunSummary, summarize_run
 from hil.runtime.assembly import (
     EkfObserver,
     LayoutSolver,
-    PidAllocator,
     layout_from_scenario,
+    low_level_for,
     select_index,
 )
 from hil.runtime.loop import Runtime, World
@@ -95,10 +93,8 @@ def build_runtime(
     """Compose the full stack for `scenario` against `world`."""
     solver = LayoutSolver(scenario, synthesizer)
     resynthesizer: Resynthesizer[SymbolicController] = Resynthesizer(solver, mode)
-    low_level = PidAllocator(VelocityPid(dt_s=1.0 / loop.loop_hz),
-                             MinimumMagnitudeAzimuthAllocator())
-    return Runtime(world, EkfObserver(), low_level, resynthesizer, select_index, log, loop,
-                   scenario_hash(scenario))
+    return Runtime(world, EkfObserver(), low_level_for(loop.loop_hz), resynthesizer,
+                   select_index, log, loop, scenario_hash(scenario))
 
 
 def synthesizer_for(scenario: Scenario, cache_dir: Path | None = None) -> Synthesizer:

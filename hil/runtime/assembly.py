@@ -12,9 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from hil.controllers.allocation import MinimumMagnitudeAzimuthAllocator
+from hil.controllers.low_level import LowLevelController, LowLevelParams
 from hil.controllers.observer import Ekf, ObserverStatus
-from hil.controllers.pid import VelocityPid
 from hil.controllers.symbolic import Controller, NoWinningSetError, Synthesizer, cost
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
 from hil.core.shapes import Rect
@@ -57,31 +56,35 @@ class EkfObserver:
 
 
 class PidAllocator:
-    """Velocity PID and thrust allocation as one low-level step.
+    """The low level (velocity PID and thrust allocation) behind the ``LowLevel`` protocol.
+
+    A thin adapter: :class:`~hil.controllers.low_level.LowLevelController` runs the
+    compiled tick that the simulated closed loop runs too; this turns its output into
+    a time-stamped thruster command.
 
     Args:
-        pid: The velocity controller (its `dt_s` must be the loop period).
-        allocator: The thrust allocator.
+        controller: The low level (its ``params.dt_s`` must be the loop period).
     """
 
-    def __init__(self, pid: VelocityPid, allocator: MinimumMagnitudeAzimuthAllocator) -> None:
-        self.pid = pid
-        self.allocator = allocator
+    def __init__(self, controller: LowLevelController) -> None:
+        self.controller = controller
 
     def step(self, nu_ref: FloatArray, nu_hat: FloatArray, t_ns: int) -> LowLevelOutput:
         """Return the force demand and the commands that realize it."""
-        output = self.pid.command(nu_ref, nu_hat)
-        result = self.allocator.allocate(output.tau_n)
-        self.pid.update(nu_ref, nu_hat, output, result.achieved_n)
-        u, alpha = result.commands, result.angles_rad
+        out = self.controller.tick(nu_ref, nu_hat)
+        u, alpha = out.commands, out.angles_rad
         command = ThrusterCommand(t_ns, float(u[0]), float(u[1]), float(u[2]),
                                   float(alpha[0]), float(alpha[1]))
-        return LowLevelOutput(output.tau_n, command)
+        return LowLevelOutput(out.tau_n, command)
 
     def reset(self) -> None:
         """Forget the integrator and the allocator's null-space state."""
-        self.pid.reset()
-        self.allocator.reset()
+        self.controller.reset()
+
+
+def low_level_for(loop_hz: float) -> PidAllocator:
+    """Return the vessel's low level (default gains and allocator) for a loop at `loop_hz`."""
+    return PidAllocator(LowLevelController(LowLevelParams(dt_s=1.0 / loop_hz)))
 
 
 class SymbolicAdapter:
@@ -181,7 +184,7 @@ def warm_up_kernels(loop_hz: float = 20.0) -> None:
     On the vessel a first call that compiles would stall the loop for seconds;
     throwaway objects take those calls so no state of the real ones is touched.
     """
-    low_level = PidAllocator(VelocityPid(dt_s=1.0 / loop_hz), MinimumMagnitudeAzimuthAllocator())
+    low_level = low_level_for(loop_hz)
     low_level.step(np.zeros(3), np.zeros(3), 0)
     observer = EkfObserver()
     observer.update_pose(PoseSample(0, 0.0, 0.0, 0.0))

@@ -1,54 +1,64 @@
-"""The whole low level in one compiled loop: sensors -> EKF -> PID -> allocation -> vessel.
+"""The whole low level in one compiled loop: sensors -> EKF -> low level -> vessel.
 
 One ``@njit`` loop at the physics rate (100 Hz by default) built only from the kernels
-the Python-level classes use (:mod:`hil.model.dynamics`, :mod:`hil.model.thrusters`,
-:mod:`hil.controllers.allocation_kernels`, :mod:`hil.controllers.pid`, and the observer's
-kernels), so a 3-minute run takes a fraction of a second and there is one copy of the
-math. Per physics step k (t = k dt):
+the vessel runs: the low-level tick of :mod:`hil.controllers.low_level` (the code
+behind the runtime's ``LowLevel``), the plant step of :mod:`hil.sim.plant` (the code
+behind the simulated world) and the observer's kernels, so a 3-minute run takes a
+fraction of a second and there is one copy of the math. Per physics step k
+(t = k dt):
 
 1. sensors: pose and IMU samples of the true state, with pre-generated noise;
-2. observer: the EKF fuses them (or the true velocity is used, ``observer=False``);
-3. every ``control_every`` steps: PID on the current reference -> force demand ->
-   allocation -> thruster setpoints; the PID integrator sees the achieved force;
-4. thrusters move toward their setpoints within their rate limits;
-5. the vessel advances one step under thrust plus environmental load.
+2. observer: the EKF fuses them (or the true velocity is used, ``observer=None``);
+3. every ``control_every`` steps: :func:`~hil.controllers.low_level.low_level_tick`
+   on the current reference -> force demand and thruster setpoints, allocated from
+   the allocator's own last angles, the PID integrator fed the allocator's achieved
+   force at the same tick (the vessel has no thrust or pod-angle feedback);
+4. :func:`~hil.sim.plant.plant_step`: thrusters move toward their setpoints within
+   their rate limits and the vessel advances one step under thrust plus load.
 
 The reference sequence is held ``command_period_s`` (2 s) per row, as the symbolic
-layer issues it.
+layer issues it. ``tests/sim/test_closed_loop.py`` pins this loop tick for tick to
+the runtime's low-level object driving the simulated world.
 """
 
 from __future__ import annotations
 
-import enum
 import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
-from hil.controllers.allocation import MmaArrays, MmaConfig
-from hil.controllers.allocation_kernels import (
-    extended_matrix,
-    mma_allocate,
-    pseudo_inverse_allocate,
+from hil.controllers.allocation import MmaConfig
+from hil.controllers.low_level import (
+    AllocatorKind,
+    LowLevelArrays,
+    LowLevelParams,
+    low_level_tick,
 )
 from hil.controllers.observer import ObserverConfig
 from hil.controllers.observer_arrays import EkfArrays
 from hil.controllers.observer_kernels import obs_imu, obs_init, obs_pose
-from hil.controllers.pid import DEFAULT_GAINS, N_PID_STATE, PidGains, pid_command, pid_integrate
+from hil.controllers.pid import DEFAULT_GAINS, PidGains
 from hil.core.jit import njit
 from hil.model.coefficients import ENTERPRISE_I, VesselParams
-from hil.model.dynamics import Integrator, acceleration, integrate_step
+from hil.model.dynamics import Integrator, acceleration
 from hil.model.environment import EnvironmentalLoad
 from hil.model.errors import StateShapeError
-from hil.model.thrusters import (
-    VOYAGER_THRUSTERS,
-    ThrusterParams,
-    throttle_for_slew,
-    thruster_force,
-    thruster_update,
-)
+from hil.model.thrusters import VOYAGER_THRUSTERS, ThrusterParams
 from hil.sim.errors import ClosedLoopConfigError
+from hil.sim.plant import (
+    N_PLANT,
+    N_TRACE,
+    P_ALPHA,
+    P_ETA,
+    P_NU,
+    P_U,
+    TR_ETA,
+    TR_NU,
+    TR_TAU,
+    plant_step,
+)
 from hil.sim.sensors import (
     ImuSensorConfig,
     PoseSensorConfig,
@@ -62,13 +72,6 @@ FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
 
-class AllocatorKind(enum.IntEnum):
-    """Which allocator the loop runs; the value is what the kernel receives."""
-
-    PSEUDO_INVERSE = 0
-    MIN_MAGNITUDE_AZIMUTH = 1
-
-
 @dataclass(frozen=True)
 class LowLevelConfig:
     """Configuration of the simulated low level.
@@ -79,7 +82,7 @@ class LowLevelConfig:
         gains: PID gains.
         allocator: Which allocator to run.
         mma: Settings of the minimum-magnitude-and-azimuth allocator (its ``dt_s`` is
-            replaced by ``control_period_s``).
+            replaced by ``control_period_s``, as on the vessel at 20 Hz).
         environment: Environmental load b(t) (zero by default).
         dt_s: Physics step (s), 0.01 as in the paper.
         integrator: Vessel integrator.
@@ -135,6 +138,17 @@ class LowLevelConfig:
         """Physics steps per reference row."""
         return round(self.command_period_s / self.dt_s)
 
+    def low_level(self) -> LowLevelParams:
+        """Return the low level this loop runs (the vessel's, at ``control_period_s``)."""
+        return LowLevelParams(
+            gains=self.gains,
+            vessel=self.vessel,
+            thrusters=self.thrusters,
+            allocator=self.allocator,
+            mma=replace(self.mma, dt_s=self.control_period_s),
+            dt_s=self.control_period_s,
+        )
+
 
 @dataclass(frozen=True)
 class ClosedLoopResult:
@@ -152,6 +166,9 @@ class ClosedLoopResult:
         tau: Thrust actually applied to the hull, shape (N, 3).
         commands: Applied thruster commands (tunnel, port, starboard), shape (N, 3).
         angles_rad: Applied azimuth angles (port, starboard), shape (N, 2).
+        setpoints: Commands the low level sent (tunnel, port, starboard), held
+            between control ticks, shape (N, 3).
+        setpoint_angles_rad: Pod angles the low level sent, shape (N, 2) (rad).
     """
 
     t_s: FloatArray
@@ -163,29 +180,21 @@ class ClosedLoopResult:
     tau: FloatArray
     commands: FloatArray
     angles_rad: FloatArray
+    setpoints: FloatArray
+    setpoint_angles_rad: FloatArray
 
 
 @njit
 def closed_loop_kernel(
     m_inv: FloatArray,
     coef: FloatArray,
-    m: FloatArray,
     method: int,
     dt: float,
-    tp: FloatArray,
-    alloc_kind: int,
-    be: FloatArray,
-    b_pinv: FloatArray,
-    q: FloatArray,
-    acfg: FloatArray,
-    a_ref: FloatArray,
-    aw: FloatArray,
-    wq: FloatArray,
-    g: FloatArray,
+    low: LowLevelArrays,
     control_every: int,
     steps_per_ref: int,
-    eta0: FloatArray,
-    nu0: FloatArray,
+    plant0: FloatArray,
+    low_state0: FloatArray,
     refs: FloatArray,
     b_env: FloatArray,
     use_observer: bool,
@@ -202,26 +211,16 @@ def closed_loop_kernel(
     Args:
         m_inv: Vessel M^-1, shape (3, 3).
         coef: Vessel coefficient array.
-        m: Vessel M, shape (3, 3).
         method: Vessel integrator (:class:`Integrator` value).
         dt: Physics step (s).
-        tp: Thruster parameter array.
-        alloc_kind: :class:`AllocatorKind` value.
-        be: Extended configuration matrix, (3, 5).
-        b_pinv: Its (weighted) pseudo-inverse, (5, 3).
-        q: Null-space basis, (5, 2).
-        acfg: Allocator settings, (6,).
-        a_ref: Azimuth reference directions, (2, 2).
-        aw: Allocator cost weights, (3,).
-        wq: Allocator residual weights, (3,).
-        g: PID gain array.
+        low: The low level's constant arrays (its ``dt`` is the control period).
         control_every: Physics steps per control step.
         steps_per_ref: Physics steps per reference row.
-        eta0: Initial pose, (3,).
-        nu0: Initial velocity, (3,).
+        plant0: Initial plant state, (N_PLANT,) (see :mod:`hil.sim.plant`).
+        low_state0: Initial low-level state, (N_LOW_LEVEL_STATE,).
         refs: References, (N_ref, 3).
         b_env: Environmental load per step, (N, 3).
-        use_observer: Feed the PID the EKF's velocity (else the true one).
+        use_observer: Feed the low level the EKF's velocity (else the true one).
         ekf: Initialized EKF arrays (updated in place).
         pose_noise: Pose noise per step, (N, 3).
         pose_available: Pose availability per step, (N,).
@@ -232,26 +231,19 @@ def closed_loop_kernel(
     """
     n = refs.shape[0] * steps_per_ref
     dt_ns = round(dt * 1e9)
-    eta = eta0.copy()
-    nu = nu0.copy()
-    u_act = np.zeros(3)
-    a_act = np.empty(2)
-    for j in range(2):
-        a_act[j] = math.atan2(a_ref[j, 1], a_ref[j, 0])
-    u_set = np.zeros(3)
-    a_set = a_act.copy()
-    theta = np.zeros(2)
-    s = np.zeros(N_PID_STATE)
+    plant = plant0.copy()
+    low_state = low_state0.copy()
+    trace = np.zeros(N_TRACE)
+    u_set = plant[P_U : P_U + 3].copy()
+    a_set = plant[P_ALPHA : P_ALPHA + 2].copy()
     tau_cmd = np.zeros(3)
-    tau_raw = np.zeros(3)
     tau = np.zeros(3)
-    tau_sum = np.zeros(3)
     imu_buf = np.zeros(3)
     pose_buf = np.zeros(3)
-    nu_hat = nu.copy()
-    ctrl_dt = control_every * dt
     for k in range(n):
         nu_ref = refs[k // steps_per_ref]
+        eta = plant[P_ETA : P_ETA + 3]
+        nu = plant[P_NU : P_NU + 3]
         if use_observer:
             # Sensors see the state at t_k; the accelerometer the force of the last step.
             nu_dot = acceleration(m_inv, coef, nu, tau + b_env[max(k - 1, 0)])
@@ -264,42 +256,28 @@ def closed_loop_kernel(
         else:
             nu_hat = nu.copy()
         if k % control_every == 0:
-            if k > 0:
-                # Anti-windup on the thrust the hull actually got over the last period.
-                tau_mean = tau_sum / control_every
-                s = pid_integrate(g, m, s, nu_ref, nu_hat, tau_raw, tau_mean, ctrl_dt)
-            tau_sum[:] = 0.0
-            tau_cmd, tau_raw, s = pid_command(g, m, coef, s, nu_ref, nu_hat, ctrl_dt)
-            # The allocator turns pods at most 90 deg from where they are now.
-            if alloc_kind == 1:
-                u_set, a_set, _, theta = mma_allocate(
-                    tp, be, b_pinv, q, theta, tau_cmd, a_act, acfg, a_ref, aw, wq
-                )
-            else:
-                u_set, a_set, _ = pseudo_inverse_allocate(tp, b_pinv, tau_cmd, a_act)
-        u_act, a_act = thruster_update(
-            tp, u_act, a_act, throttle_for_slew(u_set, a_set, a_act), a_set, dt
-        )
-        tau = thruster_force(tp, u_act, a_act)
-        tau_sum += tau
+            tau_cmd, u_set, a_set, _, low_state = low_level_tick(low, low_state, nu_ref, nu_hat)
+        plant_step(m_inv, coef, low.tp, method, dt, plant, u_set, a_set, b_env[k], trace)
+        tau[:] = trace[TR_TAU : TR_TAU + 3]
         row = out[k]
         row[0] = k * dt
-        row[1:4] = eta
-        row[4:7] = nu
+        row[1:4] = trace[TR_ETA : TR_ETA + 3]
+        row[4:7] = trace[TR_NU : TR_NU + 3]
         row[7:10] = nu_hat
         row[10:13] = nu_ref
         row[13:16] = tau_cmd
         row[16:19] = tau
-        row[19:22] = u_act
-        row[22:24] = a_act
-        eta, nu = integrate_step(m_inv, coef, eta, nu, tau + b_env[k], dt, method)
+        row[19:22] = plant[P_U : P_U + 3]
+        row[22:24] = plant[P_ALPHA : P_ALPHA + 2]
+        row[24:27] = u_set
+        row[27:29] = a_set
 
 
-N_OUT = 24
+N_OUT = 29
 
 
 def unpack(out: FloatArray) -> ClosedLoopResult:
-    """Split the kernel's (N, 24) buffer into a :class:`ClosedLoopResult`."""
+    """Split the kernel's (N, N_OUT) buffer into a :class:`ClosedLoopResult`."""
     return ClosedLoopResult(
         t_s=out[:, 0].copy(),
         eta=out[:, 1:4].copy(),
@@ -310,7 +288,18 @@ def unpack(out: FloatArray) -> ClosedLoopResult:
         tau=out[:, 16:19].copy(),
         commands=out[:, 19:22].copy(),
         angles_rad=out[:, 22:24].copy(),
+        setpoints=out[:, 24:27].copy(),
+        setpoint_angles_rad=out[:, 27:29].copy(),
     )
+
+
+def initial_plant(low_level: LowLevelParams, eta0: FloatArray, nu0: FloatArray) -> FloatArray:
+    """Return the plant state at the start, (N_PLANT,): thrusters idle at the pods' hold."""
+    plant = np.zeros(N_PLANT)
+    plant[P_ETA : P_ETA + 3] = eta0
+    plant[P_NU : P_NU + 3] = nu0
+    plant[P_ALPHA : P_ALPHA + 2] = low_level.mma.reference_angles_rad
+    return plant
 
 
 def simulate_closed_loop(
@@ -344,12 +333,7 @@ def simulate_closed_loop(
     e0 = np.zeros(3) if eta0 is None else _finite("eta0", eta0, (3,))
     v0 = np.zeros(3) if nu0 is None else _finite("nu0", nu0, (3,))
     m_inv, coef = cfg.vessel.kernel_arrays()
-    mma = MmaArrays.build(cfg.thrusters, replace(cfg.mma, dt_s=cfg.control_period_s))
-    b_pinv = (
-        mma.b_pinv
-        if cfg.allocator is AllocatorKind.MIN_MAGNITUDE_AZIMUTH
-        else np.ascontiguousarray(np.linalg.pinv(extended_matrix(mma.tp)))
-    )
+    low_level = cfg.low_level()
     b_env = np.ascontiguousarray(cfg.environment.series(n, cfg.dt_s))
     observer = ObserverConfig() if cfg.observer is None else cfg.observer
     ekf = observer.arrays()
@@ -364,10 +348,9 @@ def simulate_closed_loop(
     imu = imu_noise_series(cfg.imu, pose_n, int(imu_seed))
     out = np.empty((n, N_OUT))
     closed_loop_kernel(
-        m_inv, coef, cfg.vessel.mass_matrix(), int(cfg.integrator), cfg.dt_s,
-        mma.tp, int(cfg.allocator), mma.be, b_pinv, mma.q, mma.cfg, mma.a_ref, mma.weights,
-        mma.wq, cfg.gains.as_array(cfg.thrusters), cfg.control_every, cfg.steps_per_command,
-        e0, v0, np.ascontiguousarray(refs_arr), b_env, cfg.observer is not None, ekf,
+        m_inv, coef, int(cfg.integrator), cfg.dt_s, low_level.arrays(), cfg.control_every,
+        cfg.steps_per_command, initial_plant(low_level, e0, v0), low_level.initial_state(),
+        np.ascontiguousarray(refs_arr), b_env, cfg.observer is not None, ekf,
         np.ascontiguousarray(pose.noise), np.ascontiguousarray(pose.available),
         np.zeros((pose.delay_steps + 1, 4)), np.ascontiguousarray(imu.noise),
         np.ascontiguousarray(imu.bias), out,

@@ -61,12 +61,12 @@ def plant_step(
         trace_row: Receives the state at the start of the step, shape (N_TRACE,):
             eta, nu, nu_dot (the accelerometer's truth) and the applied thrust tau.
     """
-    eta = state[P_ETA : P_ETA + 3].copy()
-    nu = state[P_NU : P_NU + 3].copy()
-    u_act = state[P_U : P_U + 3].copy()
-    a_act = state[P_ALPHA : P_ALPHA + 2].copy()
+    # Views: the kernels below return new arrays and leave their inputs alone.
+    eta = state[P_ETA : P_ETA + 3]
+    nu = state[P_NU : P_NU + 3]
+    a_now = state[P_ALPHA : P_ALPHA + 2]
     u_act, a_act = thruster_update(
-        tp, u_act, a_act, throttle_for_slew(u_set, alpha_set, a_act), alpha_set, dt
+        tp, state[P_U : P_U + 3], a_now, throttle_for_slew(u_set, alpha_set, a_now), alpha_set, dt
     )
     tau = thruster_force(tp, u_act, a_act)
     force = tau + b_env
@@ -75,9 +75,9 @@ def plant_step(
     trace_row[TR_NU : TR_NU + 3] = nu
     trace_row[TR_NU_DOT : TR_NU_DOT + 3] = nu_dot
     trace_row[TR_TAU : TR_TAU + 3] = tau
-    eta, nu = integrate_step(m_inv, coef, eta, nu, force, dt, method)
-    state[P_ETA : P_ETA + 3] = eta
-    state[P_NU : P_NU + 3] = nu
+    eta_new, nu_new = integrate_step(m_inv, coef, eta, nu, force, dt, method)
+    state[P_ETA : P_ETA + 3] = eta_new
+    state[P_NU : P_NU + 3] = nu_new
     state[P_U : P_U + 3] = u_act
     state[P_ALPHA : P_ALPHA + 2] = a_act
 

@@ -1,0 +1,260 @@
+"""The low level as one compiled tick: velocity PID -> thrust allocation -> PID integrator.
+
+One ``@njit`` kernel, :func:`low_level_tick`, is the low level that the vessel runs
+(through :class:`LowLevelController`, behind the runtime's ``LowLevel`` protocol) and
+that the compiled closed loop of :mod:`hil.sim.closed_loop` calls at every control
+period, so the benchmarks measure the code on the vessel. Per tick, on the estimate
+``nu_hat`` and the reference ``nu_ref``:
+
+1. :func:`~hil.controllers.pid.pid_command`: force demand tau (clipped) and tau_raw;
+2. allocation of tau from the allocator's own last commanded pod angles (the vessel
+   reports neither thrust nor pod angles): minimum magnitude and azimuth
+   (:func:`~hil.controllers.allocation.mma_allocate`, which also advances the
+   null-space parameter theta) or the plain pseudo-inverse;
+3. :func:`~hil.controllers.pid.pid_integrate` with the force the allocation achieves,
+   tau_ach = B_e xi, at the same tick (anti-windup on the allocator's saturation; the
+   thrusters' rate limits are not seen).
+
+All state lives in one array (``L_*`` layout): the PID state, theta (N) and the held
+pod angles (rad), so the kernel is pure and the closed loop keeps the state as a
+plain array.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hil.controllers.allocation import MmaArrays, MmaConfig
+from hil.controllers.allocation_kernels import matvec, mma_allocate, pseudo_inverse_allocate
+from hil.controllers.pid import (
+    DEFAULT_GAINS,
+    N_PID_STATE,
+    NonFiniteInputError,
+    PidConfigError,
+    PidGains,
+    pid_command,
+    pid_integrate,
+)
+from hil.core.jit import njit
+from hil.model.coefficients import ENTERPRISE_I, VesselParams
+from hil.model.thrusters import VOYAGER_THRUSTERS, ThrusterParams
+
+FloatArray = NDArray[np.float64]
+
+# Layout of the low-level state array.
+L_PID = 0
+L_THETA = N_PID_STATE
+L_HOLD = N_PID_STATE + 2
+N_LOW_LEVEL_STATE = N_PID_STATE + 4
+
+
+class AllocatorKind(enum.IntEnum):
+    """Which allocator the low level runs; the value is what the kernel receives."""
+
+    PSEUDO_INVERSE = 0
+    MIN_MAGNITUDE_AZIMUTH = 1
+
+
+class LowLevelArrays(NamedTuple):
+    """The constant inputs of :func:`low_level_tick`; numba passes it as a tuple.
+
+    Attributes:
+        g: PID gain array, shape (N_GAINS,).
+        m: Vessel inertia matrix M, shape (3, 3).
+        coef: Vessel coefficient array (feed-forward).
+        tp: Thruster parameter array.
+        kind: :class:`AllocatorKind` value.
+        be: Extended configuration matrix B_e, shape (3, 5).
+        b_pinv: The allocator's (weighted) pseudo-inverse of B_e, shape (5, 3).
+        q: Null-space basis of B_e, shape (5, 2).
+        acfg: Allocator settings (gamma, lam, eps, dt, iterations, reg), shape (6,).
+        a_ref: Reference thrust directions (port, starboard), unit rows, (2, 2).
+        aw: Allocator cost weights, shape (3,).
+        wq: Allocator residual weights, shape (3,).
+        dt: Control period (s).
+    """
+
+    g: FloatArray
+    m: FloatArray
+    coef: FloatArray
+    tp: FloatArray
+    kind: int
+    be: FloatArray
+    b_pinv: FloatArray
+    q: FloatArray
+    acfg: FloatArray
+    a_ref: FloatArray
+    aw: FloatArray
+    wq: FloatArray
+    dt: float
+
+
+@njit
+def low_level_tick(
+    a: LowLevelArrays, state: FloatArray, nu_ref: FloatArray, nu_hat: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Run one low-level tick; return ``(tau, u, alpha, tau_ach, state)``.
+
+    Args:
+        a: Constant arrays (gains, vessel, allocator).
+        state: Low-level state, shape (N_LOW_LEVEL_STATE,), ``L_*`` layout; not modified.
+        nu_ref: Velocity reference (u m/s, v m/s, r rad/s), shape (3,).
+        nu_hat: Velocity estimate, same units, shape (3,).
+
+    Returns:
+        tau: Force demand within the PID's limits (X N, Y N, N N m), shape (3,).
+        u: Thruster commands (tunnel, port, starboard), normalized, shape (3,).
+        alpha: Pod angles (port, starboard) (rad), shape (2,).
+        tau_ach: The force these commands give at these angles, B_e xi, shape (3,).
+        state: The state after the tick, shape (N_LOW_LEVEL_STATE,).
+
+    Notes:
+        tau = PID(nu_ref, nu_hat); (u, alpha, xi, theta) = allocate(tau, theta,
+        alpha_hold); z <- z + dt (e' + Kaw (B_e xi - tau_raw) / (Ki M_ii)); alpha_hold
+        <- alpha. See :mod:`hil.controllers.pid` (Astrom & Hagglund 2006, Sec. 3.5) and
+        :mod:`hil.controllers.allocation` (Gezer et al. 2024).
+    """
+    # Views of the input state: the kernels below return new arrays and leave it alone.
+    theta = state[L_THETA : L_THETA + 2]
+    hold = state[L_HOLD : L_HOLD + 2]
+    tau, tau_raw, s_pid = pid_command(
+        a.g, a.m, a.coef, state[L_PID : L_PID + N_PID_STATE], nu_ref, nu_hat, a.dt
+    )
+    if a.kind == 1:
+        u, alpha, xi, theta_new = mma_allocate(
+            a.tp, a.be, a.b_pinv, a.q, theta, tau, hold, a.acfg, a.a_ref, a.aw, a.wq
+        )
+    else:
+        u, alpha, xi = pseudo_inverse_allocate(a.tp, a.b_pinv, tau, hold)
+        theta_new = theta.copy()
+    tau_ach = matvec(a.be, xi)
+    s_pid = pid_integrate(a.g, a.m, s_pid, nu_ref, nu_hat, tau_raw, tau_ach, a.dt)
+    out = np.empty(N_LOW_LEVEL_STATE)
+    out[L_PID : L_PID + N_PID_STATE] = s_pid
+    out[L_THETA : L_THETA + 2] = theta_new
+    out[L_HOLD : L_HOLD + 2] = alpha
+    return tau, u, alpha, tau_ach, out
+
+
+@dataclass(frozen=True)
+class LowLevelParams:
+    """Everything that defines the low level.
+
+    Attributes:
+        gains: PID gains.
+        vessel: Vessel model (inertia and feed-forward).
+        thrusters: Thruster geometry and limits.
+        allocator: Which allocator to run.
+        mma: Settings of the minimum-magnitude-and-azimuth allocator (its ``dt_s`` is
+            the period of its null-space descent; 0.05 s as the lab's).
+        dt_s: Control period (s) of the PID; 0.05 s (20 Hz) as on the vessel.
+    """
+
+    gains: PidGains = DEFAULT_GAINS
+    vessel: VesselParams = ENTERPRISE_I
+    thrusters: ThrusterParams = VOYAGER_THRUSTERS
+    allocator: AllocatorKind = AllocatorKind.MIN_MAGNITUDE_AZIMUTH
+    mma: MmaConfig = field(default_factory=MmaConfig)
+    dt_s: float = 0.05
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.dt_s) and self.dt_s > 0.0):
+            raise PidConfigError(f"dt_s must be positive, got {self.dt_s!r}")
+
+    def arrays(self) -> LowLevelArrays:
+        """Return the kernel's constant arrays."""
+        mma = MmaArrays.build(self.thrusters, self.mma)
+        b_pinv = (
+            mma.b_pinv
+            if self.allocator is AllocatorKind.MIN_MAGNITUDE_AZIMUTH
+            else np.ascontiguousarray(np.linalg.pinv(mma.be))
+        )
+        return LowLevelArrays(
+            g=self.gains.as_array(self.thrusters),
+            m=self.vessel.mass_matrix(),
+            coef=self.vessel.kernel_arrays()[1],
+            tp=mma.tp,
+            kind=int(self.allocator),
+            be=mma.be,
+            b_pinv=b_pinv,
+            q=mma.q,
+            acfg=mma.cfg,
+            a_ref=mma.a_ref,
+            aw=mma.weights,
+            wq=mma.wq,
+            dt=float(self.dt_s),
+        )
+
+    def initial_state(self) -> FloatArray:
+        """Return the state at rest, shape (N_LOW_LEVEL_STATE,).
+
+        Integrator and filter zero, theta zero, pods held at the reference angles.
+        """
+        state = np.zeros(N_LOW_LEVEL_STATE)
+        state[L_HOLD : L_HOLD + 2] = self.mma.reference_angles_rad
+        return state
+
+
+@dataclass(frozen=True, slots=True)
+class LowLevelTick:
+    """One tick of the low level.
+
+    Attributes:
+        tau_n: Force demand (X N, Y N, N N m), shape (3,).
+        commands: Thruster commands (tunnel, port, starboard), normalized, shape (3,).
+        angles_rad: Pod angles (port, starboard) (rad), shape (2,).
+        achieved_n: The force the commands give at those angles (N, N, N m), shape (3,).
+    """
+
+    tau_n: FloatArray
+    commands: FloatArray
+    angles_rad: FloatArray
+    achieved_n: FloatArray
+
+
+def _vec3(name: str, value: FloatArray) -> FloatArray:
+    arr = np.asarray(value, dtype=np.float64)
+    if arr.shape != (3,):
+        raise PidConfigError(f"{name} must have shape (3,), got {arr.shape!r}")
+    if not np.all(np.isfinite(arr)):
+        raise NonFiniteInputError(f"{name} must be finite, got {arr.tolist()!r}")
+    return arr
+
+
+class LowLevelController:
+    """The low level with its state: call :meth:`tick` once per control period.
+
+    Args:
+        params: Gains, models, allocator and period.
+    """
+
+    def __init__(self, params: LowLevelParams | None = None) -> None:
+        self.params = LowLevelParams() if params is None else params
+        self._arrays = self.params.arrays()
+        self._state = self.params.initial_state()
+
+    @property
+    def state(self) -> FloatArray:
+        """Return a copy of the state, shape (N_LOW_LEVEL_STATE,), ``L_*`` layout."""
+        return self._state.copy()
+
+    def reset(self) -> None:
+        """Forget the integrator and filter, zero theta, hold the reference angles."""
+        self._state = self.params.initial_state()
+
+    def tick(self, nu_ref: FloatArray, nu_hat: FloatArray) -> LowLevelTick:
+        """Return the demand and the commands for ``nu_ref`` and ``nu_hat``, shape (3,).
+
+        Raises:
+            NonFiniteInputError: If either holds NaN or inf; the state is unchanged.
+        """
+        ref = _vec3("nu_ref", nu_ref)
+        est = _vec3("nu_hat", nu_hat)
+        tau, u, alpha, ach, self._state = low_level_tick(self._arrays, self._state, ref, est)
+        return LowLevelTick(tau, u, alpha, ach)
