@@ -200,7 +200,25 @@ def euler_step(
     Notes:
         eta[k+1] = eta[k] + dt R(psi[k]) nu[k]; nu[k+1] = nu[k] + dt nu_dot[k]; psi wrapped.
     """
-    a = acceleration(m_inv, coef, nu, force)
+    return euler_advance(eta, nu, acceleration(m_inv, coef, nu, force), dt)
+
+
+@njit
+def euler_advance(
+    eta: FloatArray, nu: FloatArray, nu_dot: FloatArray, dt: float
+) -> tuple[FloatArray, FloatArray]:
+    """Advance one forward-Euler step from a known acceleration; return ``(eta, nu)``.
+
+    The plant already evaluates ``nu_dot`` for its accelerometer; passing it in spares
+    a second evaluation per step (:func:`euler_step` is this with ``nu_dot`` computed).
+
+    Args:
+        eta: Pose (x m, y m, psi rad), shape (3,).
+        nu: Body velocity (u m/s, v m/s, r rad/s), shape (3,).
+        nu_dot: Its derivative at (nu, force), shape (3,).
+        dt: Step (s).
+    """
+    a = nu_dot
     xd, yd = _eta_rate(eta[2], nu)
     eta_new = np.empty(3)
     eta_new[0] = eta[0] + dt * xd

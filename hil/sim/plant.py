@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hil.core.jit import njit
-from hil.model.dynamics import acceleration, integrate_step
+from hil.model.dynamics import acceleration, euler_advance, integrate_step
 from hil.model.thrusters import throttle_for_slew, thruster_force, thruster_update
 
 FloatArray = NDArray[np.float64]
@@ -75,7 +75,10 @@ def plant_step(
     trace_row[TR_NU : TR_NU + 3] = nu
     trace_row[TR_NU_DOT : TR_NU_DOT + 3] = nu_dot
     trace_row[TR_TAU : TR_TAU + 3] = tau
-    eta_new, nu_new = integrate_step(m_inv, coef, eta, nu, force, dt, method)
+    if method == 0:  # Integrator.EULER: reuse the accelerometer's nu_dot
+        eta_new, nu_new = euler_advance(eta, nu, nu_dot, dt)
+    else:
+        eta_new, nu_new = integrate_step(m_inv, coef, eta, nu, force, dt, method)
     state[P_ETA : P_ETA + 3] = eta_new
     state[P_NU : P_NU + 3] = nu_new
     state[P_U : P_U + 3] = u_act
