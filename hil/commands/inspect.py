@@ -90,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
     if output is not None and log.exists() and _inside(output, log):
         return _error(f"output {str(output)!r} would write into the log {str(log)!r}")
     try:
-        data = load_run(log)
+        data = load_run(log).require_motion()
     except (ReplayError, ValueError) as err:
         return _error(str(err).splitlines()[0] if str(err) else type(err).__name__)
     for problem in data.info.problems:

@@ -64,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
     if args.hull_every is not None and not args.hull_every > 0:
         return _error(f"--hull-every must be positive, got {args.hull_every!r}")
     try:
-        data = load_run(log)
+        data = load_run(log).require_motion()
     except (ReplayError, ValueError) as err:
         return _error(str(err).splitlines()[0] if str(err) else type(err).__name__)
     from hil.views.controller_view import scenario_for

@@ -220,13 +220,13 @@ def write_bag(
 
 def describe_change(old: Path, new: Path) -> str:
     """Return one line saying how the run at `new` differs from the one at `old`."""
-    from hil.adapters.log import read_log
+    from hil.bag.run_data import load_run
 
     try:
-        before = read_log(old)
+        before = load_run(old)
     except Exception as err:  # an unreadable old log is replaced; say why
         return f"old log unreadable ({str(err).splitlines()[0] if str(err) else err!r})"
-    after = read_log(new)
+    after = load_run(new)
 
     def docked(events: Iterable[Event]) -> str:
         times = [e.t_ns / 1e9 for e in events if e.code == "docked"]
@@ -267,7 +267,7 @@ def _record_into(run: SuiteRun, staging: str) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Regenerate the suite; return 0, or 2 on bad arguments or a failed run."""
-    from hil.replay.replayer import MANIFEST
+    from hil.replay.resim import MANIFEST
 
     if args.list:
         for item in suite():
