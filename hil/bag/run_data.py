@@ -44,10 +44,11 @@ from numpy.typing import NDArray
 
 from hil.bag import topics
 from hil.bag.columns import to_columns
+from hil.bag.decoding import to_record
 from hil.bag.errors import BagError, FrameError, NotAHilRunError
-from hil.bag.messages import Record, to_record
+from hil.bag.messages import Record
 from hil.bag.reader import BagInfo, BagReader, SkippedMessage
-from hil.bag.recorder import RunInfo
+from hil.bag.run_info import RunInfo
 from hil.bag.storage import RawMessage
 from hil.core.records import Decision, Event
 from hil.core.samples import ObstacleLayout, Rectangle

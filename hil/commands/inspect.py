@@ -93,13 +93,8 @@ def run(args: argparse.Namespace) -> int:
         data = load_run(log).require_motion()
     except (ReplayError, ValueError) as err:
         return _error(str(err).splitlines()[0] if str(err) else type(err).__name__)
-    for problem in data.info.problems:
-        _note(problem)
-    if data.skipped:
-        _note(
-            f"{len(data.skipped)} message(s) do not decode and are left out; first: "
-            f"{data.skipped[0].reason}"
-        )
+    for warning in data.warnings:  # damaged files and what the loader left out or reordered
+        _note(warning)
     from hil.views.controller_view import controller_view, scenario_for
 
     scenario, note = scenario_for(data)

@@ -70,6 +70,8 @@ def run(args: argparse.Namespace) -> int:
     from hil.views.controller_view import scenario_for
     from hil.views.plot import DEFAULT_DPI, HULL_EVERY_S, save_run_figure
 
+    for warning in data.warnings:  # damaged files and what the loader left out or reordered
+        print(f"{_PROG}: note: {warning}", file=sys.stderr)
     scenario, note = scenario_for(data)
     if note:
         print(f"{_PROG}: note: {note}", file=sys.stderr)

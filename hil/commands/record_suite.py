@@ -28,7 +28,8 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # the CLI imports every command for --help: keep numba out of it
     from hil.bag.messages import Record
-    from hil.bag.recorder import RecorderConfig, RunInfo
+    from hil.bag.recorder import RecorderConfig
+    from hil.bag.run_info import RunInfo
     from hil.core.records import Event
     from hil.runs.sim_run import SimRunSpec
     from hil.runtime.trace import MemoryLog
@@ -134,7 +135,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def record_run(run: SuiteRun, out_dir: Path) -> Path:
     """Simulate `run` and write its bag to ``out_dir / run.name``; return the bag path."""
-    from hil.bag.recorder import RecorderConfig, RunInfo
+    from hil.bag.recorder import RecorderConfig
+    from hil.bag.run_info import RunInfo
     from hil.runs.sim_run import run_in_sim, scenario_hash
     from hil.runtime.trace import MemoryLog
     from hil.scenarios.scenario import load_scenario
@@ -200,7 +202,7 @@ def write_bag(
 
     Args:
         path: New bag directory.
-        info: The run description (:class:`~hil.bag.recorder.RunInfo`).
+        info: The run description (:class:`~hil.bag.run_info.RunInfo`).
         records: Samples and records (:data:`hil.bag.messages.Record`), in time order.
         config: Recorder configuration (:class:`~hil.bag.recorder.RecorderConfig`).
         flush_every_ns: Close a chunk at every multiple of this run time (ns), as

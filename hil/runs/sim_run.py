@@ -22,7 +22,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hil.adapters.sim import ObstacleMotion, SimConfig, SimWorld, ThrusterOutage
-from hil.bag.recorder import Recorder, RunInfo
+from hil.bag.recorder import Recorder
+from hil.bag.run_info import RunInfo
 from hil.controllers.allocation import MinimumMagnitudeAzimuthAllocator
 from hil.controllers.pid import VelocityPid
 from hil.controllers.symbolic import Synthesizer, tables_for

@@ -14,8 +14,9 @@ from hil.adapters.log import (
     thruster_failures_ns,
 )
 from hil.bag.messages import Record
-from hil.bag.recorder import RecorderConfig, RunInfo
+from hil.bag.recorder import RecorderConfig
 from hil.bag.run_data import load_run
+from hil.bag.run_info import RunInfo
 from hil.commands.record_suite import write_bag
 from hil.core.records import Event, EventLevel
 from hil.core.samples import (

@@ -6,7 +6,8 @@ from pathlib import Path
 
 from hil.bag.messages import Record
 from hil.bag.reader import BagReader
-from hil.bag.recorder import RecorderConfig, RunInfo
+from hil.bag.recorder import RecorderConfig
+from hil.bag.run_info import RunInfo
 from hil.commands.record_suite import write_bag
 from hil.replay.controllers import ScenarioCache
 from hil.replay.options import ReplayOptions
