@@ -6,9 +6,9 @@ recorded run to an ``.rrd`` or a viewer, from the per-stream loggers of
 series), with the shared look of :mod:`hil.views.rerun_style` and the layout of
 :mod:`hil.views.blueprint`; :mod:`hil.views.rerun_live` streams a run as it goes.
 :mod:`hil.views.plot` is the one-page matplotlib figure, :mod:`hil.views.controller_view`
-what both draw of the symbolic controller (arcs, winning slices). May import every layer below, replay
-included (a view can show replayed decisions beside the recorded ones); only the
-commands import it.
+what both draw of the symbolic controller (arcs, winning slices). May import every
+layer below, replay included (a view can show replayed decisions beside the recorded
+ones); only the commands import it.
 """
 
 __all__: list[str] = []
