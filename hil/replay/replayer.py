@@ -37,7 +37,7 @@ from hil.replay.options import ReplayOptions
 from hil.replay.regression import LogReport
 from hil.replay.resim import check_resim
 from hil.replay.stack import check_stack
-from hil.replay.tracking import check_margin, check_tracking
+from hil.replay.tracking_checks import check_margin, check_tracking
 from hil.scenarios.scenario import ScenarioError
 
 

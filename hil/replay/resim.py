@@ -19,7 +19,7 @@ from hil.replay.controllers import ScenarioMismatchError
 from hil.replay.decisions import decision_findings
 from hil.replay.options import Tolerance
 from hil.replay.regression import Check, Finding, Status, time_s
-from hil.replay.tracking import tracking_findings
+from hil.replay.tracking_checks import tracking_findings
 from hil.runs.sim_run import SimRunSpec, run_in_sim, spec_from_json
 from hil.runtime.loop import LoopConfig
 from hil.runtime.trace import MemoryLog

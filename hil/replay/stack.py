@@ -24,7 +24,7 @@ from hil.replay.controllers import ControllerCache
 from hil.replay.decisions import decision_findings
 from hil.replay.options import ReplayOptions
 from hil.replay.regression import Check, Finding, Status, time_s
-from hil.replay.tracking import tracking_findings
+from hil.replay.tracking_checks import tracking_findings
 from hil.runs.sim_run import build_runtime
 from hil.runtime.loop import LoopConfig, Mode, World
 from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer

@@ -14,7 +14,7 @@ from hil.bag.run_data import RunData, Series
 from hil.core.records import Decision
 from hil.replay.options import Tolerance
 from hil.replay.regression import Status
-from hil.replay.tracking import check_margin, check_tracking
+from hil.replay.tracking_checks import check_margin, check_tracking
 from hil.scenarios.scenario import TrackingMargin, load_scenario
 
 
