@@ -34,10 +34,11 @@ from typing import Any
 
 from hil.bag import topics
 from hil.bag import typestore as ts
-from hil.bag.columns import COLUMN_TYPES
+from hil.bag.columns import COLUMN_TYPES, to_columns
 from hil.bag.messages import Record, encode
 from hil.bag.reader import BagReader
-from hil.bag.recorder import Recorder, RecorderConfig, RunInfo
+from hil.bag.recorder import Recorder, RecorderConfig
+from hil.bag.run_info import RunInfo
 from hil.core.records import Decision, ForceCommand, StateEstimate
 from hil.core.samples import (
     ImuSample,
@@ -181,7 +182,9 @@ def _read_hil(path: Path, mode: str) -> Callable[[], tuple[float, int]]:
             if mode == "columns":
                 for topic in reader.info.topics:
                     if topic.msgtype in COLUMN_TYPES:
-                        count += len(reader.columns(topic.name).t_ns)
+                        raws = list(reader.messages([topic.name]))
+                        columns = to_columns(topic.name, topic.msgtype, raws, reader.sample)
+                        count += len(columns.t_ns)
             else:
                 items = (
                     reader.messages()

@@ -14,7 +14,7 @@ decision and tracking checks alone. Ratios against the issue's limit (10 s) and
 goal (3 s) for a 3-minute run, and the run's own simulated length.
 
 Decode rows (messages per second over every message of the bag): rosbags
-`AnyReader` + `deserialize_cdr` (baseline), and `hil.adapters.log.read_log`
+`AnyReader` + `deserialize_cdr` (baseline), and `hil.bag.run_data.load_run`
 (what the replay reads: numpy columns for the fixed-layout topics, records for
 decisions, layouts and events), with the ratio to the baseline.
 """
@@ -55,18 +55,20 @@ def _rosbags_rate(paths: list[Path]) -> tuple[int, float]:
 
 
 def _hil_rate(paths: list[Path]) -> tuple[int, float]:
-    from hil.adapters.log import read_log
     from hil.bag.reader import describe
+    from hil.bag.run_data import load_run
 
     n = sum(describe(path).message_count for path in paths)
     start = time.perf_counter()
     for path in paths:
-        read_log(path)
+        load_run(path)
     return n, time.perf_counter() - start
 
 
 def _replay_s(paths: list[Path], stack: bool) -> tuple[float, str]:
-    from hil.replay.replayer import ReplayOptions, ScenarioCache, replay_log
+    from hil.replay.controllers import ScenarioCache
+    from hil.replay.options import ReplayOptions
+    from hil.replay.replayer import replay_log
 
     start = time.perf_counter()
     statuses = []
@@ -86,18 +88,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--repeat", type=int, default=3)
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="bench-replay-") as tmp:
-        from hil.adapters.log import read_log
+        from hil.bag.run_data import load_run
 
         paths: list[Path] = [args.log] if args.log is not None else []
-        sim_s = sum(read_log(p).end_ns / 1e9 for p in paths)
+        sim_s = sum(load_run(p).last_stamp_ns / 1e9 for p in paths)
         seed = 0
         while args.log is None and sim_s < 180.0 and seed < 6:
             t0 = time.perf_counter()
             paths.append(_record(args.scenario, seed, Path(tmp)))
-            sim_s += read_log(paths[-1]).end_ns / 1e9
+            sim_s += load_run(paths[-1]).last_stamp_ns / 1e9
             print(f"recorded {paths[-1].name} in {time.perf_counter() - t0:.1f} s (not timed)")
             seed += 1
-        runs = [read_log(p) for p in paths]
+        runs = [load_run(p) for p in paths]
         print(
             f"logs: {len(paths)} ({sim_s:.1f} s simulated, "
             f"{sum(r.info.message_count for r in runs)} messages, "
@@ -123,7 +125,7 @@ def main(argv: list[str] | None = None) -> int:
         rows = []
         for label, fn in (
             ("rosbags AnyReader + deserialize_cdr", _rosbags_rate),
-            ("hil read_log (columns + records)", _hil_rate),
+            ("hil load_run (columns + records)", _hil_rate),
         ):
             best_s, n = min(fn(paths)[::-1] for _ in range(max(1, args.repeat)))
             rows.append((label, n, best_s))

@@ -1,5 +1,13 @@
 """The bag format (layer 5): rosbag2 MCAP recording, reading, recovery, loading a run.
 
+Writing: :mod:`~hil.bag.messages` (records as ROS 2 messages), :mod:`~hil.bag.columnar`
+(bulk encoding), :mod:`~hil.bag.mcap_writer`, :mod:`~hil.bag.recorder`,
+:mod:`~hil.bag.metadata`, :mod:`~hil.bag.run_info` (what produced a run). Reading:
+:mod:`~hil.bag.storage`, :mod:`~hil.bag.reader`, :mod:`~hil.bag.decoding` (messages
+back into records), :mod:`~hil.bag.columns` (a topic as arrays),
+:mod:`~hil.bag.recover`, and :mod:`~hil.bag.run_data`, the one loader of a recorded
+run that the log backend, replay and views all use.
+
 May import :mod:`hil.core` only (samples and records are what it writes); the log
 backend, the runtime's recorder use, replay and views build on it.
 
@@ -14,10 +22,12 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from hil.bag.columns import COLUMN_TYPES, Columns
+    from hil.bag.decoding import to_record
     from hil.bag.errors import (
         BagError,
         BagFormatError,
         BagNotFoundError,
+        FrameError,
         MessageDecodeError,
         NotAHilRunError,
         RecorderClosedError,
@@ -28,10 +38,12 @@ if TYPE_CHECKING:
         SchemaError,
         UnsupportedBagError,
     )
-    from hil.bag.messages import Record, encode, to_record
+    from hil.bag.messages import Record, encode
     from hil.bag.reader import BagInfo, BagReader, SkippedMessage, TopicInfo, describe
-    from hil.bag.recorder import Recorder, RecorderConfig, RecordSink, RunInfo
+    from hil.bag.recorder import Recorder, RecorderConfig, RecordSink
     from hil.bag.recover import RecoveryReport, inspect_recovery, recover
+    from hil.bag.run_data import Repair, RepairKind, RunData, Series, load_run
+    from hil.bag.run_info import RunInfo
     from hil.bag.storage import RawMessage
 
 _WHERE: dict[str, str] = {
@@ -40,6 +52,7 @@ _WHERE: dict[str, str] = {
     "BagError": "errors",
     "BagFormatError": "errors",
     "BagNotFoundError": "errors",
+    "FrameError": "errors",
     "MessageDecodeError": "errors",
     "NotAHilRunError": "errors",
     "RecorderClosedError": "errors",
@@ -51,7 +64,7 @@ _WHERE: dict[str, str] = {
     "UnsupportedBagError": "errors",
     "Record": "messages",
     "encode": "messages",
-    "to_record": "messages",
+    "to_record": "decoding",
     "BagInfo": "reader",
     "BagReader": "reader",
     "SkippedMessage": "reader",
@@ -60,7 +73,12 @@ _WHERE: dict[str, str] = {
     "Recorder": "recorder",
     "RecorderConfig": "recorder",
     "RecordSink": "recorder",
-    "RunInfo": "recorder",
+    "RunInfo": "run_info",
+    "Repair": "run_data",
+    "RepairKind": "run_data",
+    "RunData": "run_data",
+    "Series": "run_data",
+    "load_run": "run_data",
     "RecoveryReport": "recover",
     "inspect_recovery": "recover",
     "recover": "recover",
@@ -75,6 +93,7 @@ __all__ = [
     "BagNotFoundError",
     "BagReader",
     "Columns",
+    "FrameError",
     "MessageDecodeError",
     "NotAHilRunError",
     "RawMessage",
@@ -87,15 +106,20 @@ __all__ = [
     "RecorderError",
     "RecoveryError",
     "RecoveryReport",
+    "Repair",
+    "RepairKind",
     "ReplayError",
+    "RunData",
     "RunInfo",
     "SchemaError",
+    "Series",
     "SkippedMessage",
     "TopicInfo",
     "UnsupportedBagError",
     "describe",
     "encode",
     "inspect_recovery",
+    "load_run",
     "recover",
     "to_record",
 ]

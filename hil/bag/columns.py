@@ -165,17 +165,17 @@ def to_columns(
     names = _field_names(spec)
     if not raws:
         return Columns(topic, np.zeros(0, np.int64), {n: np.zeros(0) for n in names})
+    bulk = _bulk(raws, spec)
+    if bulk is not None:  # every payload carries the first one's frame ids
+        t_ns, fields = bulk
+        if all(np.isfinite(v).all() for v in fields.values()):
+            return Columns(topic, t_ns, {n: fields[n] for n in names}, _frame_id(raws[0].data))
     frame_ids = {_frame_id(r.data) for r in raws if len(r.data) >= 16}
     frame_id = next(iter(frame_ids), "")
     if len(frame_ids) > 1:
         raise MessageDecodeError(
             f"topic {topic!r} mixes frames {sorted(frame_ids)!r}; read it as records instead"
         )
-    bulk = _bulk(raws, spec)
-    if bulk is not None:
-        t_ns, fields = bulk
-        if all(np.isfinite(v).all() for v in fields.values()):
-            return Columns(topic, t_ns, {n: fields[n] for n in names}, frame_id)
     # Uneven layouts or a bad value: decode one by one (which names the bad message).
     records = [r for r in (to_record(raw) for raw in raws) if r is not None]
     get = operator.attrgetter("t_ns", *names)

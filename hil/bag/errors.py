@@ -12,6 +12,7 @@ __all__ = [
     "BagError",
     "BagFormatError",
     "BagNotFoundError",
+    "FrameError",
     "MessageDecodeError",
     "NotAHilRunError",
     "RecordValueError",
@@ -54,6 +55,10 @@ class MessageDecodeError(BagError):
 
 class NotAHilRunError(BagError):
     """A valid log that holds none of the topics hil records."""
+
+
+class FrameError(BagError):
+    """A recorded stream in a frame hil cannot use (poses not in the arena, mixed frames)."""
 
 
 class RecorderError(ReplayError, RuntimeError):

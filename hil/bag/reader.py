@@ -3,7 +3,7 @@
 :class:`BagReader` opens a bag directory (``metadata.yaml`` plus splits, MCAP or
 sqlite3) or a bare ``.mcap``/``.db3`` file, describes it (:class:`BagInfo`) and
 yields its messages in log-time order: raw, decoded (rosbags message objects),
-or as hil samples and records (:mod:`hil.bag.messages`).
+or as hil samples and records (:mod:`hil.bag.decoding`).
 
 What happens with damaged or foreign input:
 
@@ -37,7 +37,7 @@ from typing import Any, Literal, Self
 from rosbags.typesys.store import Typestore
 
 from hil.bag import topics as hil_topics
-from hil.bag.columns import Columns, to_columns
+from hil.bag.decoding import FAST_DECODERS, SAMPLE_TYPES, to_record
 from hil.bag.errors import (
     BagError,
     BagFormatError,
@@ -48,9 +48,9 @@ from hil.bag.errors import (
     SchemaError,
     UnsupportedBagError,
 )
-from hil.bag.messages import FAST_DECODERS, SAMPLE_TYPES, Record, to_record
+from hil.bag.messages import Record
 from hil.bag.metadata import METADATA_FILE, read_metadata
-from hil.bag.recorder import RunInfo
+from hil.bag.run_info import RunInfo
 from hil.bag.storage import (
     STORAGE_PLUGINS,
     FileScan,
@@ -461,7 +461,7 @@ class BagReader:
 
         Args:
             topics: Topics to read; default every topic whose type has a sample
-                (:data:`hil.bag.messages.SAMPLE_TYPES`).
+                (:data:`hil.bag.decoding.SAMPLE_TYPES`).
             on_error: As in :meth:`decoded`; also covers values a sample refuses (NaN).
 
         Raises:
@@ -483,29 +483,11 @@ class BagReader:
             if record is not None:
                 yield raw.topic, raw.t_ns, record
 
-    def columns(self, topic: str) -> Columns:
-        """Return one fixed-layout topic as numpy columns (see :mod:`hil.bag.columns`).
-
-        Args:
-            topic: A topic whose type is in :data:`hil.bag.columns.COLUMN_TYPES`.
-
-        Returns:
-            Stamps, shape (N,), and one array per sample field, shape (N,).
-
-        Raises:
-            BagError: Unknown topic, a type without columns, or a bad message.
-        """
-        types = {t.name: t.msgtype for t in self.info.topics}
-        if topic not in types:
-            raise BagError(f"{str(self.path)!r} has no topic {topic!r}; it has {sorted(types)!r}")
-        raws = list(self.messages([topic]))
-        return to_columns(topic, types[topic], raws, self.sample)
-
     def sample(self, raw: RawMessage) -> Record | None:
         """Convert one raw message to a sample or record; None for types without one.
 
         Fixed-layout types are unpacked straight from the CDR payload
-        (:data:`hil.bag.messages.FAST_DECODERS`), others decoded with rosbags.
+        (:data:`hil.bag.decoding.FAST_DECODERS`), others decoded with rosbags.
 
         Raises:
             MessageDecodeError: The payload does not decode, or holds a value a

@@ -1,45 +1,80 @@
-"""A recorded run as numpy arrays, for pictures and Rerun export.
+"""The one loader of a recorded run: every stream hil records as numpy arrays.
 
 :func:`load_run` reads a bag once with :class:`~hil.bag.reader.BagReader` and
-keeps every stream hil records as time-major arrays (``t_ns`` of shape (N,),
-values of shape (N, k)), plus the few variable-size records (decisions, obstacle
-layouts, events) as tuples. Fixed-layout topics are decoded in bulk
-(:func:`hil.bag.columns.to_columns`), so a 3-minute run loads in well under a
-second. The log is only read, never modified.
+returns a :class:`RunData`: the fixed-layout streams (:data:`FIELDS`, the one
+field table) as time-major arrays (``t_ns`` of shape (N,), values of shape
+(N, k)), decoded in bulk (:func:`hil.bag.columns.to_columns`), and the
+variable-size records (decisions, obstacle layouts, events) as tuples. The log
+backend (:mod:`hil.adapters.log`), replay, the Rerun export and the plots all
+read a run through it, so they see the same samples. The log is only read,
+never modified.
 
-A message that does not decode is skipped and listed in :attr:`RunData.skipped`,
-so one damaged message does not hide the rest of a run; a log that is not a hil
-run, or holds no pose, raises a :class:`~hil.bag.errors.BagError`.
+The rule for imperfect input, the same on every topic:
+
+- *bad* messages (a payload that does not decode, a value a sample refuses such
+  as NaN) are left out;
+- *out-of-order* messages (a stamp earlier than the one before it on the same
+  topic) are put in stamp order (a stable sort: messages with equal stamps keep
+  their recorded order);
+- *duplicates* (same topic, same stamp, same values) are dropped but the first;
+  messages that share a stamp with different values are all kept (on a sample
+  stream that is odd and reported; several events or decisions at one tick are not);
+- each of these is counted per topic and reported in :attr:`RunData.repairs`
+  (one line each in :attr:`RunData.warnings`, naming the first time), so no
+  recorded data is lost silently; every bad message is also listed in
+  :attr:`RunData.skipped`.
+
+A stream must be in one frame, and poses in the arena frame, else
+:class:`~hil.bag.errors.FrameError`. A log that is not a hil run raises
+:class:`~hil.bag.errors.NotAHilRunError`.
 """
 
 from __future__ import annotations
 
+import enum
 import math
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 
 from hil.bag import topics
-from hil.bag.columns import Columns, to_columns
-from hil.bag.errors import BagError, NotAHilRunError
-from hil.bag.messages import Record, to_record
+from hil.bag.columns import to_columns
+from hil.bag.decoding import to_record
+from hil.bag.errors import BagError, FrameError, NotAHilRunError
+from hil.bag.messages import Record
 from hil.bag.reader import BagInfo, BagReader, SkippedMessage
-from hil.bag.recorder import RunInfo
+from hil.bag.run_info import RunInfo
 from hil.bag.storage import RawMessage
 from hil.core.records import Decision, Event
 from hil.core.samples import ObstacleLayout
 from hil.core.shapes import Rect
+from hil.core.tracking import TrackingSeries, tracking_error
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
 _SYNTHESIS_TEXT = re.compile(r"controller v(\d+) in ([0-9.eE+-]+) s")
 _CONTROLLER_READY = "controller_ready"
+
+FIELDS: dict[str, tuple[str, ...]] = {
+    topics.POSE: ("x_m", "y_m", "yaw_rad"),
+    topics.IMU: ("accel_x_mps2", "accel_y_mps2", "yaw_rate_radps"),
+    topics.ODOM: ("x_m", "y_m", "yaw_rad", "surge_mps", "sway_mps", "yaw_rate_radps"),
+    topics.VELOCITY_COMMAND: ("surge_mps", "sway_mps", "yaw_rate_radps"),
+    topics.FORCE_COMMAND: ("surge_n", "sway_n", "yaw_nm"),
+    topics.THRUSTERS: ("tunnel", "port", "starboard", "port_angle_rad", "starboard_angle_rad"),
+}
+"""Topic -> the sample fields kept, in column order: the one field table of a run."""
+
+RECORD_TOPICS = (topics.DECISION, topics.OBSTACLES, topics.EVENTS)
+"""Topics read as records (variable size)."""
+
+_POSE_FRAMES = ("", topics.ARENA_FRAME)
 
 
 @dataclass(frozen=True, slots=True)
@@ -48,8 +83,7 @@ class Series:
 
     Attributes:
         t_ns: Sample times (ns on the run clock), shape (N,), int64, ascending.
-        values: Values, shape (N, k), time-major; the column order is documented
-            where the series is named (see :class:`RunData`).
+        values: Values, shape (N, k), time-major; the columns of :data:`FIELDS`.
     """
 
     t_ns: IntArray
@@ -120,6 +154,49 @@ def synthesis_time(event: Event) -> SynthesisTime | None:
     )
 
 
+class RepairKind(enum.Enum):
+    """What the loader did to some messages of a topic (see the module docstring)."""
+
+    BAD = "bad"
+    REORDERED = "reordered"
+    DUPLICATE = "duplicate"
+    SAME_STAMP = "same_stamp"
+
+
+@dataclass(frozen=True, slots=True)
+class Repair:
+    """Messages of one topic the loader left out, reordered or flagged.
+
+    Attributes:
+        topic: The topic.
+        kind: What was done.
+        count: How many messages.
+        t_ns: Stamp of the first one (ns).
+        detail: The first one's reason (bad messages) or the stamp it followed
+            (reordered ones); "" otherwise.
+    """
+
+    topic: str
+    kind: RepairKind
+    count: int
+    t_ns: int
+    detail: str = ""
+
+    def __str__(self) -> str:
+        """Return the repair as one line."""
+        what = {
+            RepairKind.BAD: f"skipped {self.count} message(s) that do not decode to valid "
+            f"samples, first t={self.t_ns} ns: {self.detail}",
+            RepairKind.REORDERED: f"{self.count} stamp(s) go back in time, first at "
+            f"t={self.t_ns} ns after t={self.detail} ns; put in stamp order",
+            RepairKind.DUPLICATE: f"dropped {self.count} duplicated message(s), "
+            f"first at t={self.t_ns} ns",
+            RepairKind.SAME_STAMP: f"{self.count} message(s) share a stamp with different "
+            f"values, first at t={self.t_ns} ns; all kept",
+        }[self.kind]
+        return f"{self.topic}: {what}"
+
+
 @dataclass(frozen=True, slots=True)
 class RunData:
     """A recorded run, every stream as arrays.
@@ -127,21 +204,24 @@ class RunData:
     Attributes:
         path: The log that was read.
         info: The log's summary.
-        pose: Measured poses, values (N, 3): x m, y m, psi rad.
+        pose: Measured poses in the arena, values (N, 3): x m, y m, psi rad.
+        imu: IMU samples, values (N, 3): ax m/s^2, ay m/s^2, r rad/s.
         estimate: Observer estimate, values (N, 6): x m, y m, psi rad, u m/s, v m/s, r rad/s.
         reference: Velocity reference nu_ref, values (N, 3): u m/s, v m/s, r rad/s.
         force: Force demand tau, values (N, 3): X N, Y N, N N m.
         thrusters: Thruster commands, values (N, 5): tunnel, port, starboard in [-1, 1],
             port and starboard azimuth angles in rad.
         decisions: The symbolic controller's decisions, in time order.
-        layouts: The obstacle layouts, in time order.
+        layouts: The obstacle layouts (recorded when they change), in time order.
         events: Runtime events and faults, in time order.
-        skipped: Messages that did not decode and were left out.
+        repairs: What the loader left out or reordered, per topic and kind.
+        skipped: Every message that did not decode and was left out.
     """
 
     path: Path
     info: BagInfo
     pose: Series
+    imu: Series
     estimate: Series
     reference: Series
     force: Series
@@ -149,6 +229,7 @@ class RunData:
     decisions: tuple[Decision, ...]
     layouts: tuple[Layout, ...]
     events: tuple[Event, ...]
+    repairs: tuple[Repair, ...] = ()
     skipped: tuple[SkippedMessage, ...] = ()
 
     @property
@@ -166,6 +247,56 @@ class RunData:
         """Return the last log time (ns); 0 for an empty log."""
         return self.info.end_ns or 0
 
+    @property
+    def last_stamp_ns(self) -> int:
+        """Return the latest stamp (ns) of the sensors, estimates, commands and decisions.
+
+        0 when there is none. A truncated log ends there.
+        """
+        streams = (self.pose, self.imu, self.estimate, self.thrusters)
+        ends = [int(s.t_ns.max()) for s in streams if len(s)]
+        ends += [d.t_ns for d in self.decisions[-1:]]
+        return max(ends, default=0)
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """Return one line per oddity of the log: damaged files, undecodable topics, repairs."""
+        return (
+            *(f"bag: {p}" for p in self.info.problems),
+            *(
+                f"{t.name}: cannot be decoded: {t.problem}"
+                for t in self.info.topics
+                if not t.decodable and t.name in topics.HIL_TOPICS
+            ),
+            *(str(r) for r in self.repairs),
+        )
+
+    def require_motion(self) -> RunData:
+        """Return self if the run has poses or estimates to draw.
+
+        Raises:
+            NotAHilRunError: The run holds neither.
+        """
+        if not len(self.pose) and not len(self.estimate):
+            raise NotAHilRunError(
+                f"{str(self.path)!r} holds no pose and no state estimate "
+                f"({topics.POSE!r}, {topics.ODOM!r}): nothing to show"
+            )
+        return self
+
+    def tracking_error(self) -> TrackingSeries:
+        """Return the estimated velocity's tracking error against the recorded reference.
+
+        The one definition (:func:`hil.core.tracking.tracking_error`): each estimate
+        against the reference in force at its time, in SI, ``nu_hat - nu_ref``.
+        """
+        return tracking_error(
+            self.estimate.t_ns,
+            self.estimate.values[:, 3:6],
+            self.reference.t_ns,
+            self.reference.values,
+        )
+
     def synthesis_times(self) -> tuple[SynthesisTime, ...]:
         """Return each re-synthesis with its wall time, from the ``controller_ready`` events."""
         times = (synthesis_time(event) for event in self.events)
@@ -182,15 +313,66 @@ class RunData:
         return best
 
 
-_FIELDS: dict[str, tuple[str, ...]] = {
-    topics.POSE: ("x_m", "y_m", "yaw_rad"),
-    topics.ODOM: ("x_m", "y_m", "yaw_rad", "surge_mps", "sway_mps", "yaw_rate_radps"),
-    topics.VELOCITY_COMMAND: ("surge_mps", "sway_mps", "yaw_rate_radps"),
-    topics.FORCE_COMMAND: ("surge_n", "sway_n", "yaw_nm"),
-    topics.THRUSTERS: ("tunnel", "port", "starboard", "port_angle_rad", "starboard_angle_rad"),
-}
-_RECORD_TOPICS = (topics.DECISION, topics.EVENTS)
-_DRAWN = frozenset({*_FIELDS, *_RECORD_TOPICS, topics.OBSTACLES})
+_T = TypeVar("_T")
+
+
+def _tidy(
+    topic: str,
+    t_ns: IntArray,
+    same: Callable[[int, int], bool],
+    repairs: list[Repair],
+    *,
+    report_ties: bool,
+) -> NDArray[np.intp]:
+    """Apply the rule to one topic: return the indices kept, in stamp order.
+
+    Args:
+        topic: Topic name (for the report).
+        t_ns: Stamps in recorded order, shape (N,).
+        same: Whether messages i and j (recorded indices) hold the same values.
+        repairs: Where to add what was done.
+        report_ties: Whether to report messages sharing a stamp with different values.
+    """
+    n = len(t_ns)
+    order = np.arange(n, dtype=np.intp)
+    if n < 2:
+        return order
+    back = np.flatnonzero(t_ns[1:] < t_ns[:-1])
+    if back.size:
+        repairs.append(
+            Repair(
+                topic,
+                RepairKind.REORDERED,
+                int(back.size),
+                int(t_ns[back[0] + 1]),
+                str(int(t_ns[back[0]])),
+            )
+        )
+        order = np.argsort(t_ns, kind="stable").astype(np.intp)
+    stamps = t_ns[order]
+    tied = np.flatnonzero(stamps[1:] == stamps[:-1])
+    if not tied.size:
+        return order
+    keep = np.ones(n, dtype=bool)
+    dropped: list[int] = []
+    clashes: list[int] = []
+    start = 0
+    while start < n:  # only runs of equal stamps need a look
+        stop = start + 1
+        while stop < n and stamps[stop] == stamps[start]:
+            stop += 1
+        for a in range(start + 1, stop):
+            if any(keep[b] and same(int(order[b]), int(order[a])) for b in range(start, a)):
+                keep[a] = False
+                dropped.append(int(stamps[a]))
+            else:
+                clashes.append(int(stamps[a]))
+        start = stop
+    if dropped:
+        repairs.append(Repair(topic, RepairKind.DUPLICATE, len(dropped), dropped[0]))
+    if clashes and report_ties:
+        repairs.append(Repair(topic, RepairKind.SAME_STAMP, len(clashes), clashes[0]))
+    return order[keep]
 
 
 def _polygon(msg: Any) -> FloatArray:
@@ -202,102 +384,153 @@ def _polygon(msg: Any) -> FloatArray:
 
 
 class _Loader:
-    """One pass over a bag, grouping raw messages by topic."""
+    """One pass over a bag: decode, skip bad messages, apply the rule."""
 
     def __init__(self, reader: BagReader) -> None:
         self.reader = reader
         self.skipped: list[SkippedMessage] = []
+        self.repairs: list[Repair] = []
 
-    def _skip(self, raw: RawMessage, err: Exception) -> None:
-        self.skipped.append(SkippedMessage(raw.topic, raw.t_ns, str(err)))
+    def _bad(self, topic: str, skipped: Sequence[SkippedMessage]) -> None:
+        if skipped:
+            first = skipped[0]
+            reason = (first.reason.splitlines() or [""])[0]
+            self.repairs.append(Repair(topic, RepairKind.BAD, len(skipped), first.t_ns, reason))
+            self.skipped.extend(skipped)
 
-    def record(self, raw: RawMessage) -> Record | None:
-        return to_record(raw.msgtype, self.reader.decode(raw))
+    def _decoded(
+        self, topic: str, raws: list[RawMessage], decode: Callable[[RawMessage], _T]
+    ) -> list[_T]:
+        out: list[_T] = []
+        skipped: list[SkippedMessage] = []
+        for raw in raws:
+            try:
+                out.append(decode(raw))
+            except ValueError as err:  # BagError, SampleError and RecordValueError all are
+                skipped.append(SkippedMessage(raw.topic, raw.t_ns, str(err)))
+        self._bad(topic, skipped)
+        return out
 
-    def safe(self, raw: RawMessage, fn: Callable[[RawMessage], Any]) -> Any:
-        try:
-            return fn(raw)
-        except (BagError, ValueError) as err:
-            self._skip(raw, err)
-            return None
-
-    def columns(self, topic: str, raws: list[RawMessage]) -> Series:
-        names = _FIELDS[topic]
+    def series(self, topic: str, raws: list[RawMessage]) -> Series:
+        names = FIELDS[topic]
         if not raws:
             return Series.empty(len(names))
+        skipped: list[SkippedMessage] = []
+
+        def sample(raw: RawMessage) -> Record | None:
+            try:
+                return self.reader.sample(raw)
+            except ValueError as err:
+                skipped.append(SkippedMessage(raw.topic, raw.t_ns, str(err)))
+                return None
+
         try:
-            cols: Columns = to_columns(topic, raws[0].msgtype, raws, self.record)
-        except (BagError, ValueError):
-            # A bad message somewhere: decode one by one and skip the bad ones.
-            records = [r for r in (self.safe(raw, self.record) for raw in raws) if r is not None]
-            t_ns = np.array([r.t_ns for r in records], dtype=np.int64)
-            values = np.array(
-                [[getattr(r, n) for n in names] for r in records], dtype=np.float64
-            ).reshape(len(records), len(names))
+            columns = to_columns(topic, raws[0].msgtype, raws, sample)
+        except BagError as err:  # one topic in several frames
+            raise FrameError(f"{str(self.reader.path)!r}: {err}") from err
+        self._bad(topic, skipped)
+        if topic == topics.POSE and columns.frame_id not in _POSE_FRAMES and len(columns.t_ns):
+            raise FrameError(
+                f"{str(self.reader.path)!r}: poses are in frame {columns.frame_id!r}; "
+                f"hil reads arena-frame poses ({topics.ARENA_FRAME!r})"
+            )
+        if not len(columns.t_ns):
+            return Series.empty(len(names))
+        values = columns.stack(*names)
+        t_ns = columns.t_ns
+        keep = _tidy(
+            topic,
+            t_ns,
+            lambda i, j: bool(np.array_equal(values[i], values[j])),
+            self.repairs,
+            report_ties=True,
+        )
+        if len(keep) == len(t_ns) and not np.any(keep[1:] < keep[:-1]):
             return Series(t_ns, values)
-        return Series(cols.t_ns, cols.stack(*names))
+        return Series(t_ns[keep], values[keep])
+
+    def records(
+        self,
+        topic: str,
+        raws: list[RawMessage],
+        decode: Callable[[RawMessage], _T],
+        key: Callable[[_T], tuple[int, object]],
+    ) -> tuple[_T, ...]:
+        """Decode a record topic; `key` gives (stamp, what makes two records the same)."""
+        items = self._decoded(topic, raws, decode)
+        keys = [key(x) for x in items]
+        t_ns = np.array([k[0] for k in keys], dtype=np.int64)
+        keep = _tidy(topic, t_ns, lambda i, j: keys[i] == keys[j], self.repairs, report_ties=False)
+        return tuple(items[int(k)] for k in keep)
+
+    def record(self, raw: RawMessage) -> Record:
+        record = self.reader.sample(raw)
+        if record is None:
+            raise ValueError(f"{raw.msgtype!r} on {raw.topic!r} has no record")
+        return record
 
     def layout(self, raw: RawMessage) -> Layout:
         msg = self.reader.decode(raw)
         record = to_record(raw.msgtype, msg)
-        assert isinstance(record, ObstacleLayout)
+        if not isinstance(record, ObstacleLayout):
+            raise ValueError(f"{raw.msgtype!r} on {raw.topic!r} is not an obstacle layout")
         real = tuple(_polygon(p) for p in msg.real)
         inflated = tuple(_polygon(p) for p in msg.inflated)
         return Layout(record.t_ns, real, inflated, record.obstacles)
 
 
+def _record_key(record: Record) -> tuple[int, object]:
+    return record.t_ns, record
+
+
+def _layout_key(layout: Layout) -> tuple[int, object]:
+    return layout.t_ns, layout.rectangles
+
+
 def load_run(path: str | Path) -> RunData:
-    """Read a recorded run.
+    """Read a recorded run (see the module docstring for the rule on imperfect input).
 
     Args:
         path: Bag directory or ``.mcap`` file written by hil's recorder.
 
     Returns:
-        The run's streams as arrays.
+        The run's streams as arrays, with what was repaired.
 
     Raises:
         BagNotFoundError: The path does not exist.
         BagFormatError: Not a readable bag (truncated beyond use, foreign storage, ...).
-        NotAHilRunError: A valid log without hil's topics, or without a single pose.
+        NotAHilRunError: A valid log without hil's topics.
+        FrameError: Poses not in the arena frame, or a stream in several frames.
     """
     with BagReader(path) as reader:
         reader.require_hil_run()
         info = reader.info
-        # The IMU and the lab's per-thruster topics are not drawn (/hil/thrusters is lossless).
-        wanted = [t.name for t in info.topics if t.decodable and t.name in _DRAWN]
-        by_topic: dict[str, list[RawMessage]] = {name: [] for name in wanted}
-        for raw in reader.messages(wanted):
+        read = (*FIELDS, *RECORD_TOPICS)
+        wanted = [t.name for t in info.topics if t.decodable and t.name in read]
+        by_topic: dict[str, list[RawMessage]] = {name: [] for name in read}
+        for raw in reader.messages(wanted):  # one pass over the chunks
             by_topic[raw.topic].append(raw)
         loader = _Loader(reader)
-        series = {topic: loader.columns(topic, by_topic.get(topic, [])) for topic in _FIELDS}
-        records: dict[str, list[Any]] = {t: [] for t in _RECORD_TOPICS}
-        for topic in _RECORD_TOPICS:
-            for raw in by_topic.get(topic, []):
-                record = loader.safe(raw, loader.record)
-                if record is not None:
-                    records[topic].append(record)
-        layouts = [
-            layout
-            for layout in (
-                loader.safe(raw, loader.layout) for raw in by_topic.get(topics.OBSTACLES, [])
-            )
-            if layout is not None
-        ]
-    if not len(series[topics.POSE]) and not len(series[topics.ODOM]):
-        raise NotAHilRunError(
-            f"{str(path)!r} holds no pose and no state estimate "
-            f"({topics.POSE!r}, {topics.ODOM!r}): nothing to show"
+        series = {topic: loader.series(topic, by_topic[topic]) for topic in FIELDS}
+        decisions = loader.records(
+            topics.DECISION, by_topic[topics.DECISION], loader.record, _record_key
         )
+        layouts = loader.records(
+            topics.OBSTACLES, by_topic[topics.OBSTACLES], loader.layout, _layout_key
+        )
+        events = loader.records(topics.EVENTS, by_topic[topics.EVENTS], loader.record, _record_key)
     return RunData(
         path=Path(path),
         info=info,
         pose=series[topics.POSE],
+        imu=series[topics.IMU],
         estimate=series[topics.ODOM],
         reference=series[topics.VELOCITY_COMMAND],
         force=series[topics.FORCE_COMMAND],
         thrusters=series[topics.THRUSTERS],
-        decisions=tuple(records[topics.DECISION]),
-        layouts=tuple(layouts),
-        events=tuple(records[topics.EVENTS]),
+        decisions=tuple(r for r in decisions if isinstance(r, Decision)),
+        layouts=layouts,
+        events=tuple(r for r in events if isinstance(r, Event)),
+        repairs=tuple(loader.repairs),
         skipped=tuple(loader.skipped),
     )

@@ -13,7 +13,8 @@ incomplete or corrupt one.
 
 from __future__ import annotations
 
-import heapq
+import bisect
+import operator
 import sqlite3
 import struct
 import urllib.parse
@@ -34,6 +35,7 @@ MCAP_MAGIC = b"\x89MCAP0\r\n"
 _CHUNK_HEAD = struct.Struct("<QQQII")  # start, end, uncompressed size, crc, compression length
 _RECORD_HEAD = struct.Struct("<BQ")  # opcode, length
 _MESSAGE_HEAD = struct.Struct("<HIQ")  # channel, sequence, log time
+_log_time = operator.attrgetter("t_ns")  # of a RawMessage
 
 
 def _decompress(compression: str, data: bytes, size: int) -> bytes:
@@ -278,26 +280,25 @@ class McapFile:
                 for ch in summary.channels.values()
                 if topics is None or ch.topic in topics
             }
-            heap: list[tuple[int, int, RawMessage]] = []
-            order = 0
+            # Messages read but not yet yielded, sorted by log time (ties in file order).
+            pending: list[RawMessage] = []
             for index in sorted(summary.chunk_indexes, key=lambda c: c.message_start_time):
                 if index.message_index_offsets and not any(
                     cid in channels for cid in index.message_index_offsets
                 ):
                     continue  # the chunk's index says it holds none of the wanted channels
                 # Messages before this chunk's first time cannot come later: yield them.
-                while heap and heap[0][0] < index.message_start_time:
-                    yield heapq.heappop(heap)[2]
-                for t_ns, raw in self._chunk_messages(stream, index, channels):
-                    heapq.heappush(heap, (t_ns, order, raw))
-                    order += 1
-            while heap:
-                yield heapq.heappop(heap)[2]
+                ready = bisect.bisect_left(pending, index.message_start_time, key=_log_time)
+                yield from pending[:ready]
+                # Stable sort of two runs (the rest, then this chunk in file order): a merge.
+                pending = pending[ready:] + self._chunk_messages(stream, index, channels)
+                pending.sort(key=_log_time)
+            yield from pending
 
     def _chunk_messages(
         self, stream: IO[bytes], index: ChunkIndex, channels: dict[int, tuple[str, str]]
-    ) -> Iterator[tuple[int, RawMessage]]:
-        """Yield (log time, message) of one chunk's wanted channels, in file order."""
+    ) -> list[RawMessage]:
+        """Return the messages of one chunk's wanted channels, in file order."""
         try:
             stream.seek(index.chunk_start_offset + 9)  # opcode and record length
             record = stream.read(index.chunk_length - 9)
@@ -314,17 +315,20 @@ class McapFile:
         view = memoryview(data)
         pos, end = 0, len(data)
         unpack = _RECORD_HEAD.unpack_from
+        unpack_message = _MESSAGE_HEAD.unpack_from
+        out: list[RawMessage] = []
+        append = out.append
         while pos + 9 <= end:
             opcode, length = unpack(data, pos)
             body = pos + 9
             pos = body + length
             if opcode != 0x05 or pos > end:
                 continue
-            channel_id, _, log_time = _MESSAGE_HEAD.unpack_from(data, body)
+            channel_id, _, log_time = unpack_message(data, body)
             wanted = channels.get(channel_id)
             if wanted is not None:
-                topic, msgtype = wanted
-                yield log_time, RawMessage(topic, log_time, msgtype, bytes(view[body + 22 : pos]))
+                append(RawMessage(wanted[0], log_time, wanted[1], bytes(view[body + 22 : pos])))
+        return out
 
     def _stream_messages(self, topics: Collection[str] | None) -> Iterator[RawMessage]:
         schemas: dict[int, str] = {}

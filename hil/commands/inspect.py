@@ -90,16 +90,11 @@ def run(args: argparse.Namespace) -> int:
     if output is not None and log.exists() and _inside(output, log):
         return _error(f"output {str(output)!r} would write into the log {str(log)!r}")
     try:
-        data = load_run(log)
+        data = load_run(log).require_motion()
     except (ReplayError, ValueError) as err:
         return _error(str(err).splitlines()[0] if str(err) else type(err).__name__)
-    for problem in data.info.problems:
-        _note(problem)
-    if data.skipped:
-        _note(
-            f"{len(data.skipped)} message(s) do not decode and are left out; first: "
-            f"{data.skipped[0].reason}"
-        )
+    for warning in data.warnings:  # damaged files and what the loader left out or reordered
+        _note(warning)
     from hil.views.controller_view import controller_view, scenario_for
 
     scenario, note = scenario_for(data)

@@ -64,12 +64,14 @@ def run(args: argparse.Namespace) -> int:
     if args.hull_every is not None and not args.hull_every > 0:
         return _error(f"--hull-every must be positive, got {args.hull_every!r}")
     try:
-        data = load_run(log)
+        data = load_run(log).require_motion()
     except (ReplayError, ValueError) as err:
         return _error(str(err).splitlines()[0] if str(err) else type(err).__name__)
     from hil.views.controller_view import scenario_for
     from hil.views.plot import DEFAULT_DPI, HULL_EVERY_S, save_run_figure
 
+    for warning in data.warnings:  # damaged files and what the loader left out or reordered
+        print(f"{_PROG}: note: {warning}", file=sys.stderr)
     scenario, note = scenario_for(data)
     if note:
         print(f"{_PROG}: note: {note}", file=sys.stderr)

@@ -28,7 +28,8 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # the CLI imports every command for --help: keep numba out of it
     from hil.bag.messages import Record
-    from hil.bag.recorder import RecorderConfig, RunInfo
+    from hil.bag.recorder import RecorderConfig
+    from hil.bag.run_info import RunInfo
     from hil.core.records import Event
     from hil.runs.sim_run import SimRunSpec
     from hil.runtime.trace import MemoryLog
@@ -134,7 +135,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def record_run(run: SuiteRun, out_dir: Path) -> Path:
     """Simulate `run` and write its bag to ``out_dir / run.name``; return the bag path."""
-    from hil.bag.recorder import RecorderConfig, RunInfo
+    from hil.bag.recorder import RecorderConfig
+    from hil.bag.run_info import RunInfo
     from hil.runs.sim_run import run_in_sim, scenario_hash
     from hil.runtime.trace import MemoryLog
     from hil.scenarios import load_scenario
@@ -200,7 +202,7 @@ def write_bag(
 
     Args:
         path: New bag directory.
-        info: The run description (:class:`~hil.bag.recorder.RunInfo`).
+        info: The run description (:class:`~hil.bag.run_info.RunInfo`).
         records: Samples and records (:data:`hil.bag.messages.Record`), in time order.
         config: Recorder configuration (:class:`~hil.bag.recorder.RecorderConfig`).
         flush_every_ns: Close a chunk at every multiple of this run time (ns), as
@@ -220,13 +222,13 @@ def write_bag(
 
 def describe_change(old: Path, new: Path) -> str:
     """Return one line saying how the run at `new` differs from the one at `old`."""
-    from hil.adapters.log import read_log
+    from hil.bag.run_data import load_run
 
     try:
-        before = read_log(old)
+        before = load_run(old)
     except Exception as err:  # an unreadable old log is replaced; say why
         return f"old log unreadable ({str(err).splitlines()[0] if str(err) else err!r})"
-    after = read_log(new)
+    after = load_run(new)
 
     def docked(events: Iterable[Event]) -> str:
         times = [e.t_ns / 1e9 for e in events if e.code == "docked"]
@@ -267,7 +269,7 @@ def _record_into(run: SuiteRun, staging: str) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Regenerate the suite; return 0, or 2 on bad arguments or a failed run."""
-    from hil.replay.replayer import MANIFEST
+    from hil.replay.resim import MANIFEST
 
     if args.list:
         for item in suite():

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from hil.replay.replayer import ScenarioCache
+    from hil.replay.controllers import ScenarioCache
 
 HELP = "replay recorded runs through the current code; non-zero exit on any regression"
 
@@ -109,19 +109,19 @@ def _write_replay_rrd(
     log: Path, folder: Path, caches: ScenarioCache, scenario: str | None
 ) -> str:
     """Write the recording with its replayed decisions to an .rrd; return what happened."""
-    from hil.adapters.log import read_log
     from hil.bag.errors import ReplayError
     from hil.bag.run_data import load_run
-    from hil.replay.replayer import replayed_decisions, resolve_scenario
+    from hil.replay.controllers import resolve_scenario
+    from hil.replay.decisions import replayed_decisions
     from hil.views.rerun_export import write_rrd
 
     out = folder / f"{log.name}.replay.rrd"
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        recorded = read_log(log)
+        recorded = load_run(log).require_motion()
         chosen = resolve_scenario(recorded, scenario)
         replayed = replayed_decisions(recorded, caches.get(chosen))
-        stats = write_rrd(load_run(log), out, chosen, None, replayed=replayed)
+        stats = write_rrd(recorded, out, chosen, None, replayed=replayed)
     except (ReplayError, ValueError, OSError) as err:
         return f"not written: {_one_line(err)}"
     return f"{out} ({stats.bytes / 1e6:.1f} MB)"
@@ -130,8 +130,10 @@ def _write_replay_rrd(
 def run(args: argparse.Namespace) -> int:
     """Replay every log, print the reports; return 0, 1 (regression) or 2 (bad log)."""
     from hil.adapters.log import LogConfig
+    from hil.replay.controllers import ScenarioCache
+    from hil.replay.options import ReplayOptions, Tolerance
     from hil.replay.regression import exit_code, junit_xml, render, summary_json
-    from hil.replay.replayer import ReplayOptions, ScenarioCache, Tolerance, replay_log
+    from hil.replay.replayer import replay_log
 
     try:
         tolerance = Tolerance.parse(args.tolerance)

@@ -53,7 +53,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _live_rerun(target: str) -> LiveView:
     """Return the live view that streams to a spawned viewer ("spawn") or an .rrd path."""
-    from hil.views.rerun_export import LiveRerunLog  # rerun only when asked for
+    from hil.views.rerun_live import LiveRerunLog  # rerun only when asked for
 
     save = None if target == "spawn" else Path(target)
 

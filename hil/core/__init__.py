@@ -4,6 +4,7 @@
 - :mod:`hil.core.jit`: ``njit`` with a numba cache keyed by the package sources;
 - :mod:`hil.core.samples`: sensor and actuator samples (pose, IMU, thrusters, layouts);
 - :mod:`hil.core.records`: what the stack records besides samples (decisions, events);
+- :mod:`hil.core.tracking`: the velocity-tracking error (join, units, sign);
 - :mod:`hil.core.clock`: simulated and wall clocks;
 - :mod:`hil.core.config`: TOML tables into frozen dataclasses, errors naming the key.
 

@@ -21,8 +21,9 @@ from typing import TYPE_CHECKING, Any
 import pytest
 
 if TYPE_CHECKING:
+    from hil.replay.controllers import ScenarioCache
+    from hil.replay.options import ReplayOptions
     from hil.replay.regression import LogReport
-    from hil.replay.replayer import ReplayOptions, ScenarioCache
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
@@ -82,13 +83,13 @@ class HilLogItem(pytest.Item):
         self.log_path = log_path
 
     def _options(self) -> ReplayOptions:
-        from hil.replay.replayer import ReplayOptions, Tolerance
+        from hil.replay.options import ReplayOptions, Tolerance
 
         tolerance = Tolerance.parse(str(self.config.getoption("hil_tolerance")))
         return ReplayOptions(tolerance=tolerance, resim=bool(self.config.getoption("hil_resim")))
 
     def _caches(self) -> ScenarioCache:
-        from hil.replay.replayer import ScenarioCache
+        from hil.replay.controllers import ScenarioCache
 
         stash_key = _CACHE_KEY
         if stash_key not in self.config.stash:

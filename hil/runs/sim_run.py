@@ -22,7 +22,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hil.adapters.sim import ObstacleMotion, SimConfig, SimWorld, ThrusterOutage
-from hil.bag.recorder import Recorder, RunInfo
+from hil.bag.recorder import Recorder
+from hil.bag.run_info import RunInfo
 from hil.controllers.symbolic import Synthesizer, tables_for
 from hil.controllers.symbolic.grid import Grid
 from hil.runs.summary import RunSummary, summarize_run

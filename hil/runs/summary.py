@@ -1,9 +1,9 @@
 """The summary of one run: what a user reads first, and its JSON form.
 
-Tracking error is the paper's measure: the difference between the velocity
-reference as issued and the vessel's velocity (the estimate on the vessel; the
-simulator's truth in sim), RMS per axis over the time the vessel was under
-control, yaw in deg/s as the paper prints it.
+Tracking error is the paper's measure, computed by :mod:`hil.core.tracking`:
+the vessel's velocity (the estimate on the vessel; the simulator's truth in sim)
+minus the velocity reference in force, at every tick under control, RMS and
+largest per axis, yaw in deg/s as the paper prints it.
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 from rich.console import Console
 from rich.table import Table
 
+from hil.core.tracking import TrackingSeries, for_display, tracking_error
 from hil.runs.clearance import hull_clearance_series
 from hil.runtime.stats import RunStats
 from hil.scenarios import Scenario
@@ -30,7 +31,7 @@ PAPER_TRACKING_ERROR = (0.00768, 0.00431, 0.62108)
 
 @dataclass(frozen=True, slots=True)
 class TrackingError:
-    """Velocity-tracking error per axis.
+    """Velocity-tracking error per axis, as reported: yaw in deg/s like the paper.
 
     Attributes:
         rms: RMS of (nu - nu_ref): surge m/s, sway m/s, yaw deg/s.
@@ -43,22 +44,14 @@ class TrackingError:
     samples: int
 
     @staticmethod
-    def between(nu: FloatArray, nu_ref: FloatArray) -> TrackingError:
-        """Compute the error of velocities `nu` against references `nu_ref`, both (N, 3)."""
-        nu = np.asarray(nu, dtype=np.float64).reshape(-1, 3)
-        nu_ref = np.asarray(nu_ref, dtype=np.float64).reshape(-1, 3)
-        if nu.shape != nu_ref.shape:
-            raise ValueError(f"shapes differ: nu {nu.shape!r}, nu_ref {nu_ref.shape!r}")
-        if len(nu) == 0:
-            return TrackingError((math.nan, math.nan, math.nan), (math.nan, math.nan, math.nan), 0)
-        err = nu - nu_ref
-        err[:, 2] = np.degrees(err[:, 2])
-        rms = np.sqrt(np.mean(err**2, axis=0))
-        peak = np.max(np.abs(err), axis=0)
+    def of(series: TrackingSeries) -> TrackingError:
+        """Summarize an error series of :func:`hil.core.tracking.tracking_error` (NaN if empty)."""
+        rms = for_display(series.rms())
+        peak = for_display(series.peak()[0])
         return TrackingError(
             (float(rms[0]), float(rms[1]), float(rms[2])),
             (float(peak[0]), float(peak[1]), float(peak[2])),
-            len(err),
+            len(series),
         )
 
 
@@ -209,6 +202,8 @@ def summarize_run(
     """
     clearance = hull_clearance_series(scenario, trajectory)
     synth = stats.synthesis_seconds or [math.nan]
+    ticks = np.asarray(stats.t_ns, dtype=np.int64)
+    nu_ref = np.asarray(stats.nu_ref, dtype=np.float64).reshape(-1, 3)
     reached = stats.target_reached_ns
     return RunSummary(
         scenario=scenario_name,
@@ -228,7 +223,7 @@ def summarize_run(
         not_winning_decisions=stats.not_winning_decisions,
         rejected_samples=stats.rejected_samples,
         pose_losses=stats.pose_losses,
-        tracking=TrackingError.between(velocity, np.asarray(stats.nu_ref).reshape(-1, 3)),
+        tracking=TrackingError.of(tracking_error(ticks, velocity, ticks, nu_ref)),
         period_jitter_p99_ms=period_jitter_p99_ms(stats.tick_wall_ns, nominal_s),
         overruns=stats.overruns,
         log=log,

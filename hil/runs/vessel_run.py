@@ -20,7 +20,8 @@ import numpy as np
 from hil.adapters.interfaces import ObstacleSource
 from hil.adapters.obstacles import StaticObstacleSource
 from hil.adapters.ros import RosConfig, RosWorld
-from hil.bag.recorder import Recorder, RunInfo
+from hil.bag.recorder import Recorder
+from hil.bag.run_info import RunInfo
 from hil.core.config import from_table, load_toml
 from hil.runs.sim_run import build_runtime, scenario_hash, synthesizer_for
 from hil.runs.summary import RunSummary, summarize_run

@@ -4,7 +4,8 @@ Left: the arena as in the paper (x right, y up) with the boundary, the real
 obstacles (filled) and the inflated ones (dashed), the target T1 and the abstract
 target T2, the estimated trajectory, and the hull outline every few seconds.
 Right: velocity tracking per axis, commanded (nu_ref) against estimated (nu_hat),
-with yaw rate in deg/s as the paper reports it.
+with yaw rate in deg/s as the paper reports it, and the RMS of the tracking
+error of :mod:`hil.core.tracking` (the figure replay judges) above each axis.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from matplotlib.patches import Polygon as PolygonPatch
 from numpy.typing import NDArray
 
 from hil.bag.run_data import RunData
+from hil.core.tracking import for_display
 from hil.scenarios import Hull, Scenario, hull_footprint
 from hil.views.controller_view import inflated_outlines
 
@@ -133,9 +135,25 @@ def draw_arena(ax: Axes, run: RunData, scenario: Scenario | None, hull_every_s: 
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=3, fontsize=8, frameon=False)
 
 
+def tracking_rms_text(run: RunData) -> tuple[str, str, str]:
+    """Return the tracking error's RMS per axis as shown ("" without references)."""
+    tracking = run.tracking_error()
+    if not len(tracking):
+        return ("", "", "")
+    rms = for_display(tracking.rms())
+    return (
+        f"RMS error {rms[0]:.4f} m/s",
+        f"RMS error {rms[1]:.4f} m/s",
+        f"RMS error {rms[2]:.3f} deg/s",
+    )
+
+
 def draw_velocity(axes: list[Axes], run: RunData) -> None:
-    """Draw commanded against estimated velocity, one axis per row."""
+    """Draw commanded against estimated velocity, one axis per row, with the tracking RMS."""
+    rms_text = tracking_rms_text(run)
     for k, (ax, (label, scale)) in enumerate(zip(axes, _AXES, strict=True)):
+        if rms_text[k]:
+            ax.set_title(rms_text[k], loc="left", fontsize=8)
         if len(run.reference):
             ax.step(
                 run.reference.t_s,

@@ -23,7 +23,8 @@ from hil.core.samples import PoseSample
 CHILD = """
 import sys, time
 from hil.core.samples import ImuSample, PoseSample, ThrusterCommand
-from hil.bag.recorder import Recorder, RecorderConfig, RunInfo
+from hil.bag.recorder import Recorder, RecorderConfig
+from hil.bag.run_info import RunInfo
 
 recorder = Recorder(sys.argv[1], RunInfo("crash.toml", "h", 1), RecorderConfig(split_s=1.0))
 recorder.open()

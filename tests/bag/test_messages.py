@@ -11,8 +11,9 @@ from mcap_ros2.decoder import DecoderFactory
 
 from hil.bag import topics
 from hil.bag import typestore as ts
+from hil.bag.decoding import to_record
 from hil.bag.errors import RecordValueError
-from hil.bag.messages import Record, encode, to_record
+from hil.bag.messages import Record, encode
 from hil.core.records import Decision, Event, EventLevel, StateEstimate
 from hil.core.samples import PoseSample, ThrusterCommand
 from tests.bag.bag_streams import one_of_each

@@ -26,7 +26,8 @@ from hil.bag.errors import (
 )
 from hil.bag.messages import encode
 from hil.bag.reader import BagReader, describe
-from hil.bag.recorder import Recorder, RecorderConfig, RunInfo
+from hil.bag.recorder import Recorder, RecorderConfig
+from hil.bag.run_info import RunInfo
 from hil.core.samples import ImuSample, PoseSample
 from tests.bag.bag_streams import FOREIGN_BAGS, foreign_bag_paths, one_of_each, tree_digest
 

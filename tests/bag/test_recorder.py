@@ -18,10 +18,12 @@ from rosbags.rosbag2 import Reader as RosbagsReader
 
 from hil.bag import topics
 from hil.bag.columnar import BULK_ENCODERS
+from hil.bag.decoding import to_record
 from hil.bag.errors import RecorderClosedError, RecorderError, RecordValueError
-from hil.bag.messages import Record, encode, to_record
+from hil.bag.messages import Record, encode
 from hil.bag.reader import BagReader
-from hil.bag.recorder import Recorder, RecorderConfig, RunInfo
+from hil.bag.recorder import Recorder, RecorderConfig
+from hil.bag.run_info import RunInfo
 from hil.bag.typestore import typestore
 from hil.core.records import Decision, EventLevel, ForceCommand, StateEstimate
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
@@ -213,12 +215,6 @@ def test_bad_record_raises_before_anything_is_written(tmp_path: Path) -> None:
 def test_bad_config_is_refused() -> None:
     with pytest.raises(RecordValueError, match="flush_s"):
         RecorderConfig(split_s=0.1, flush_s=0.5)
-
-
-def test_run_info_round_trip_and_foreign_data() -> None:
-    assert RunInfo.from_custom_data(RUN.custom_data()) == RUN
-    assert RunInfo.from_custom_data({"other": "tool"}) is None
-    assert RunInfo(seed=None).custom_data()["seed"] == ""
 
 
 @pytest.mark.parametrize("threaded", [True, False], ids=["threaded", "inline"])

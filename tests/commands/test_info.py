@@ -9,7 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from hil.bag.recorder import Recorder, RunInfo
+from hil.bag.recorder import Recorder
+from hil.bag.run_info import RunInfo
 from hil.commands import info
 from hil.core.samples import ImuSample
 

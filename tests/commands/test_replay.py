@@ -13,7 +13,8 @@ from xml.etree import ElementTree as ET
 import pytest
 
 from hil.bag.reader import BagReader
-from hil.bag.recorder import RecorderConfig, RunInfo
+from hil.bag.recorder import RecorderConfig
+from hil.bag.run_info import RunInfo
 from hil.commands import replay
 from hil.commands.record_suite import write_bag
 from hil.core.records import Decision

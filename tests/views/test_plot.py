@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import struct
 from pathlib import Path
 
@@ -13,7 +14,13 @@ from hil.commands import plot as plot_command
 from hil.runs.sim_run import SimRunSpec, run_in_sim
 from hil.runtime.settings import LoopConfig
 from hil.views.controller_view import scenario_for
-from hil.views.plot import DEFAULT_DPI, FIGURE_SIZE_IN, save_run_figure
+from hil.views.plot import (
+    DEFAULT_DPI,
+    FIGURE_SIZE_IN,
+    run_figure,
+    save_run_figure,
+    tracking_rms_text,
+)
 
 
 @pytest.fixture(scope="module")
@@ -81,3 +88,14 @@ def test_hil_plot_wants_a_png_name(
 ) -> None:
     assert _plot(str(bag), "-o", str(tmp_path / "run.jpg")) == 2
     assert "must end in .png" in capsys.readouterr().err
+
+
+def test_velocity_panels_show_the_tracking_rms_replay_judges(bag: Path) -> None:
+    run = load_run(bag)
+    rms = run.tracking_error().rms()
+    text = tracking_rms_text(run)
+    assert text[0] == f"RMS error {rms[0]:.4f} m/s"
+    assert text[2] == f"RMS error {math.degrees(rms[2]):.3f} deg/s"
+    fig = run_figure(run, None)
+    titles = [ax.get_title(loc="left") for ax in fig.axes]
+    assert list(text) == [t for t in titles if t.startswith("RMS")]

@@ -1,92 +1,24 @@
 """Rerun export of a real short run, read back with Rerun's own reader.
 
-The run is a real simulated docking on the coarse scenario with one obstacle
-moving (so the layout changes and the controller is re-synthesized once). The
-``.rrd`` is read back with ``rerun.chunk.RrdReader``; row counts and values are
-checked against the bag, read independently with :class:`BagReader`.
+Row counts and values are checked against the bag, read independently with
+:class:`BagReader` (the run itself: see ``conftest.py``).
 """
 
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import pytest
-from rerun.chunk import LazyStore, RrdReader
+from rerun.chunk import RrdReader
 
-from hil.adapters.sim import ObstacleMotion
 from hil.bag.reader import BagReader
-from hil.bag.run_data import RunData, load_run
+from hil.bag.run_data import load_run
 from hil.core.samples import PoseSample, VelocityReference
-from hil.runs.sim_run import SimRunSpec, run_in_sim
-from hil.runtime.settings import LoopConfig
-from hil.runtime.trace import MemoryLog
-from hil.scenarios import Scenario, load_scenario
 from hil.views.controller_view import controller_view, scenario_for
-from hil.views.rerun_export import (
-    TIMELINE,
-    LiveRerunLog,
-    blueprint,
-    decisions_differ,
-    tracking_error,
-    write_rrd,
-)
-
-
-@dataclass(frozen=True)
-class Exported:
-    bag: Path
-    run: RunData
-    scenario: Scenario
-    rrd: Path
-    store: LazyStore
-
-
-@pytest.fixture(scope="module")
-def exported(tmp_path_factory: pytest.TempPathFactory) -> Exported:
-    root = tmp_path_factory.mktemp("rerun")
-    bag = root / "run"
-    # O2 moves 0.1 m at t = 1..1.5 s: two layouts, one re-synthesis.
-    run_in_sim(
-        SimRunSpec(
-            scenario="coarse",
-            seed=3,
-            out_dir=bag,
-            motions=(ObstacleMotion(index=1, velocity_mps=(0.2, 0.0), start_s=1.0, stop_s=1.5),),
-            loop=LoopConfig(resynthesis_period_s=None, max_duration_s=12.0),
-        )
-    )
-    run = load_run(bag)
-    scenario, note = scenario_for(run)
-    assert scenario is not None, note
-    rrd = root / "run.rrd"
-    write_rrd(run, rrd, scenario, controller_view(run, scenario))
-    return Exported(bag, run, scenario, rrd, RrdReader(rrd).store())
-
-
-def _rows(store: LazyStore, entity: str) -> int:
-    chunks = store.stream().filter(content=entity, is_static=False).to_chunks()
-    return sum(c.num_rows for c in chunks if c.entity_path == entity)
-
-
-def _column(store: LazyStore, entity: str, component: str) -> tuple[np.ndarray, list[object]]:
-    """Return (run_time ns, values) of one temporal component, in time order."""
-    times: list[int] = []
-    values: list[object] = []
-    for chunk in store.stream().filter(content=entity, is_static=False).to_chunks():
-        batch = chunk.to_record_batch()
-        times.extend(batch.column(TIMELINE).cast("int64").to_pylist())
-        values.extend(batch.column(component).to_pylist())
-    order = np.argsort(times, kind="stable")
-    return np.asarray(times)[order], [values[i] for i in order]
-
-
-def _first(row: object) -> object:
-    """Return the first instance of a row read back from Rerun (a list)."""
-    assert isinstance(row, list)
-    return row[0]
+from hil.views.rerun_export import write_rrd
+from hil.views.rerun_world import decisions_differ
+from tests.views.rrd_store import Exported, column, first, rows
 
 
 def test_the_recording_has_the_arena_vessel_controller_and_plots(exported: Exported) -> None:
@@ -126,15 +58,15 @@ def test_one_row_per_pose_decision_layout_and_event(exported: Exported) -> None:
     n_decisions = counts["/hil/decision"]
     assert n_pose > 100
     assert n_decisions >= 5
-    assert _rows(store, "/world/vessel") == n_pose
-    assert _rows(store, "/world/pose_samples") == n_pose
-    assert _rows(store, "/world/controller/safe_inputs") == n_decisions
-    assert _rows(store, "/world/controller/chosen_input") == n_decisions
-    assert _rows(store, "/world/controller/winning_set") == n_decisions
-    assert _rows(store, "/plots/value") == n_decisions
-    assert _rows(store, "/world/arena/obstacles/real") == counts["/hil/obstacles"] == 2
-    assert _rows(store, "/events") == counts["/hil/events"] == len(run.events)
-    assert _rows(store, "/plots/synthesis_time_s") == 2  # the first controller and one swap
+    assert rows(store, "/world/vessel") == n_pose
+    assert rows(store, "/world/pose_samples") == n_pose
+    assert rows(store, "/world/controller/safe_inputs") == n_decisions
+    assert rows(store, "/world/controller/chosen_input") == n_decisions
+    assert rows(store, "/world/controller/winning_set") == n_decisions
+    assert rows(store, "/plots/value") == n_decisions
+    assert rows(store, "/world/arena/obstacles/real") == counts["/hil/obstacles"] == 2
+    assert rows(store, "/events") == counts["/hil/events"] == len(run.events)
+    assert rows(store, "/plots/synthesis_time_s") == 2  # the first controller and one swap
 
 
 def test_logged_values_match_the_bag(exported: Exported) -> None:
@@ -145,20 +77,20 @@ def test_logged_values_match_the_bag(exported: Exported) -> None:
     sway_rows = [(r.t_ns, r.sway_mps) for r in refs if isinstance(r, VelocityReference)]
     assert len(pose_rows) == len(poses)
     assert len(sway_rows) == len(refs)
-    t, translations = _column(exported.store, "/world/vessel", "Transform3D:translation")
+    t, translations = column(exported.store, "/world/vessel", "Transform3D:translation")
     assert t.tolist() == [row[0] for row in pose_rows]
-    got = np.array([_first(row) for row in translations])
+    got = np.array([first(row) for row in translations])
     want = np.array([[x, y, 0.0] for _, x, y in pose_rows])
     np.testing.assert_allclose(got, want, atol=1e-5)  # float32 in Rerun
-    t, scalars = _column(exported.store, "/plots/velocity/sway/commanded", "Scalars:scalars")
+    t, scalars = column(exported.store, "/plots/velocity/sway/commanded", "Scalars:scalars")
     assert t.tolist() == [row[0] for row in sway_rows]
-    got_sway = np.array([_first(s) for s in scalars], dtype=np.float64)
+    got_sway = np.array([first(s) for s in scalars], dtype=np.float64)
     np.testing.assert_allclose(got_sway, np.array([v for _, v in sway_rows]))
 
 
 def test_safe_input_arcs_start_at_the_decision_state(exported: Exported) -> None:
     decisions = exported.run.decisions
-    t, strips = _column(exported.store, "/world/controller/safe_inputs", "LineStrips3D:strips")
+    t, strips = column(exported.store, "/world/controller/safe_inputs", "LineStrips3D:strips")
     assert t.tolist() == [d.t_ns for d in decisions]
     for d, row in zip(decisions, strips, strict=True):
         assert isinstance(row, list)
@@ -184,13 +116,13 @@ def test_winning_set_resynthesized_for_the_recorded_layout_matches_each_decision
 def test_winning_set_pixels_put_the_decision_cell_at_its_place(exported: Exported) -> None:
     decisions = exported.run.decisions
     view = controller_view(exported.run, exported.scenario)
-    _, data = _column(exported.store, "/world/controller/winning_set", "GridMap:data")
-    _, translation = _column(exported.store, "/world/controller/winning_set", "GridMap:translation")
+    _, data = column(exported.store, "/world/controller/winning_set", "GridMap:data")
+    _, translation = column(exported.store, "/world/controller/winning_set", "GridMap:translation")
     for d, s, blob, corner in zip(decisions, view.slices, data, translation, strict=True):
         assert s is not None
         grid = s.grid
-        pixels = np.asarray(_first(blob), dtype=np.uint8).reshape(grid.ny, grid.nx, 4)
-        np.testing.assert_allclose(np.asarray(_first(corner))[:2], [grid.x_min_m, grid.y_min_m])
+        pixels = np.asarray(first(blob), dtype=np.uint8).reshape(grid.ny, grid.nx, 4)
+        np.testing.assert_allclose(np.asarray(first(corner))[:2], [grid.x_min_m, grid.y_min_m])
         cell = grid.cell_of(d.state)
         assert cell is not None
         # The first row is drawn at the top: cell (i, j) is pixel [ny - 1 - j, i].
@@ -198,46 +130,6 @@ def test_winning_set_pixels_put_the_decision_cell_at_its_place(exported: Exporte
         grey = np.all(pixels == (90, 90, 90, 150), axis=-1)
         assert not np.array_equal(s.obstacles, s.obstacles[:, ::-1])  # a flip would show
         np.testing.assert_array_equal(grey, s.obstacles.T[::-1])
-
-
-def test_tracking_error_holds_the_reference_until_the_next_one(exported: Exported) -> None:
-    run = exported.run
-    error = tracking_error(run)
-    i = len(error) // 2
-    t = error.t_ns[i]
-    held = run.reference.values[np.searchsorted(run.reference.t_ns, t, side="right") - 1]
-    estimate = run.estimate.values[run.estimate.t_ns == t][0, 3:6]
-    np.testing.assert_allclose(error.values[i], estimate - held)
-
-
-def test_blueprint_builds_without_a_scenario() -> None:
-    assert blueprint(None) is not None
-
-
-def test_live_log_streams_every_record_and_forwards_it(tmp_path: Path) -> None:
-    memory = MemoryLog()
-    rrd = tmp_path / "live.rrd"
-    live = LiveRerunLog.open(load_scenario("coarse"), save=rrd, inner=memory)
-    run_in_sim(
-        SimRunSpec(
-            scenario="coarse",
-            seed=2,
-            loop=LoopConfig(resynthesis_period_s=None, max_duration_s=6.0),
-        ),
-        log=live,
-    )
-    live.close()
-    store = RrdReader(rrd).store()
-    assert len(memory.decisions) >= 3
-    assert _rows(store, "/world/vessel") == len(memory.poses)
-    assert _rows(store, "/world/controller/safe_inputs") == len(memory.decisions)
-    assert _rows(store, "/plots/velocity/surge/commanded") == len(memory.velocity_references)
-    assert _rows(store, "/events") == len(memory.events)
-    assert _rows(store, "/plots/synthesis_time_s") == memory.event_codes().count("controller_ready")
-    t, scalars = _column(store, "/plots/thrusters/commands", "Scalars:scalars")
-    assert t.tolist() == [c.t_ns for c in memory.thruster_commands]
-    want = np.array([[c.tunnel, c.port, c.starboard] for c in memory.thruster_commands])
-    np.testing.assert_allclose(np.array(scalars, dtype=np.float64), want)
 
 
 def test_replayed_decisions_are_shown_beside_and_differences_marked(
@@ -254,13 +146,13 @@ def test_replayed_decisions_are_shown_beside_and_differences_marked(
     store = RrdReader(rrd).store()
     assert decisions_differ(recorded[changed], replayed[changed])
     assert not decisions_differ(recorded[0], replayed[0])
-    assert _rows(store, "/world/replay/safe_inputs") == len(replayed)
-    t, marks = _column(store, "/plots/replay/differs", "Scalars:scalars")
+    assert rows(store, "/world/replay/safe_inputs") == len(replayed)
+    t, marks = column(store, "/plots/replay/differs", "Scalars:scalars")
     assert t.tolist() == [d.t_ns for d in replayed]
-    assert [_first(m) for m in marks] == [float(i == changed) for i in range(len(replayed))]
-    t, _ = _column(store, "/world/replay/differs", "Points3D:positions")
+    assert [first(m) for m in marks] == [float(i == changed) for i in range(len(replayed))]
+    t, _ = column(store, "/world/replay/differs", "Points3D:positions")
     assert t.tolist() == [recorded[changed].t_ns]
-    assert _rows(store, "/events/replay") == 1
+    assert rows(store, "/events/replay") == 1
 
 
 def test_a_spent_synthesis_budget_leaves_later_layouts_without_a_slice(exported: Exported) -> None:

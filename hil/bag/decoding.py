@@ -1,0 +1,300 @@
+"""ROS 2 messages back into hil's samples and records (the reverse of :mod:`hil.bag.messages`).
+
+:func:`to_record` turns a decoded message (a rosbags message object or anything
+with the same attribute names) back into a sample or record; :data:`FAST_DECODERS`
+go straight from a fixed-layout little-endian CDR payload to a sample, skipping
+rosbags. Conventions are those of :mod:`hil.bag.messages`.
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+from collections.abc import Callable
+from functools import cache
+from typing import Any
+
+import numpy as np
+
+from hil.bag import topics
+from hil.bag import typestore as ts
+from hil.bag.errors import RecordValueError
+from hil.bag.messages import Record
+from hil.core.geometry import wrap_angle
+from hil.core.records import Decision, Event, EventLevel, ForceCommand, StateEstimate
+from hil.core.samples import (
+    Frame,
+    ImuSample,
+    ObstacleLayout,
+    PoseSample,
+    SampleError,
+    ThrusterCommand,
+    VelocityReference,
+    obstacle_rect,
+)
+from hil.core.shapes import Rect
+
+_NS = 1_000_000_000
+
+
+def _pad(offset: int, align: int) -> int:
+    return (-offset) % align
+
+
+def _t_ns(header: Any) -> int:
+    return int(header.stamp.sec) * _NS + int(header.stamp.nanosec)
+
+
+def _yaw(q: Any) -> float:
+    # Planar pose: yaw about z of the quaternion (x, y, z, w), wrapped to [-pi, pi).
+    siny = 2.0 * (q.w * q.z + q.x * q.y)
+    cosy = 1.0 - 2.0 * (q.y * q.y + q.z * q.z)
+    return float(wrap_angle(math.atan2(siny, cosy)))
+
+
+def _pose(msg: Any) -> PoseSample:
+    try:
+        frame = Frame(msg.header.frame_id)
+    except ValueError:
+        raise SampleError(
+            f"pose frame_id {msg.header.frame_id!r} is not one of {[f.value for f in Frame]!r}"
+        ) from None
+    p = msg.pose.pose
+    return PoseSample(
+        _t_ns(msg.header), float(p.position.x), float(p.position.y), _yaw(p.orientation), frame
+    )
+
+
+def _imu(msg: Any) -> ImuSample:
+    return ImuSample(
+        _t_ns(msg.header),
+        float(msg.linear_acceleration.x),
+        float(msg.linear_acceleration.y),
+        float(msg.angular_velocity.z),
+    )
+
+
+def _odom(msg: Any) -> StateEstimate:
+    p = msg.pose.pose
+    tw = msg.twist.twist
+    return StateEstimate(
+        _t_ns(msg.header),
+        float(p.position.x),
+        float(p.position.y),
+        _yaw(p.orientation),
+        float(tw.linear.x),
+        float(tw.linear.y),
+        float(tw.angular.z),
+    )
+
+
+def _twist(msg: Any) -> VelocityReference:
+    tw = msg.twist
+    return VelocityReference(
+        _t_ns(msg.header), float(tw.linear.x), float(tw.linear.y), float(tw.angular.z)
+    )
+
+
+def _wrench(msg: Any) -> ForceCommand:
+    w = msg.wrench
+    return ForceCommand(_t_ns(msg.header), float(w.force.x), float(w.force.y), float(w.torque.z))
+
+
+def _thrusters(msg: Any) -> ThrusterCommand:
+    return ThrusterCommand(
+        _t_ns(msg.header),
+        float(msg.tunnel),
+        float(msg.port),
+        float(msg.starboard),
+        float(msg.port_angle),
+        float(msg.starboard_angle),
+    )
+
+
+def _decision(msg: Any) -> Decision:
+    inputs = np.asarray(msg.safe_inputs, dtype=np.float64)
+    if inputs.size % 3:
+        raise RecordValueError(f"decision safe_inputs has {inputs.size} values, not k x 3")
+    return Decision(
+        t_ns=_t_ns(msg.header),
+        state=(float(msg.x), float(msg.y), float(msg.psi)),
+        cell=int(msg.cell),
+        value=float(msg.value),
+        winning=bool(msg.winning),
+        safe_inputs=tuple((float(u), float(v), float(r)) for u, v, r in inputs.reshape(-1, 3)),
+        safe_input_indices=tuple(int(i) for i in np.asarray(msg.safe_input_indices)),
+        chosen_index=int(msg.chosen_index),
+        chosen_input=tuple(float(c) for c in np.asarray(msg.chosen_input)),  # type: ignore[arg-type]
+        controller_version=int(msg.controller_version),
+        scenario_hash=str(msg.scenario_hash),
+    )
+
+
+def _rectangle(msg: Any) -> Rect:
+    xs = np.asarray(msg.x, dtype=np.float64)
+    ys = np.asarray(msg.y, dtype=np.float64)
+    if xs.shape != (4,) or ys.shape != (4,):
+        raise RecordValueError(
+            f"obstacle polygon {msg.name!r} has {xs.size} x and {ys.size} y values, "
+            "not the 4 corners of a rectangle"
+        )
+    rect = obstacle_rect(float(xs.min()), float(xs.max()), float(ys.min()), float(ys.max()))
+    corners_x = set(xs.tolist()) <= {rect.x_min_m, rect.x_max_m}
+    corners_y = set(ys.tolist()) <= {rect.y_min_m, rect.y_max_m}
+    if not (corners_x and corners_y):
+        raise RecordValueError(
+            f"obstacle polygon {msg.name!r} is not an axis-aligned rectangle: "
+            f"x={xs.tolist()!r}, y={ys.tolist()!r}"
+        )
+    return rect
+
+
+def _layout(msg: Any) -> ObstacleLayout:
+    return ObstacleLayout(_t_ns(msg.header), tuple(_rectangle(p) for p in msg.real))
+
+
+def _event(msg: Any) -> Event:
+    try:
+        level = EventLevel(int(msg.level))
+    except ValueError:
+        raise RecordValueError(f"event level {int(msg.level)!r} is not a known level") from None
+    return Event(_t_ns(msg.header), level, str(msg.code), str(msg.text))
+
+
+_DECODERS: dict[str, Callable[[Any], Record]] = {
+    topics.POSE_TYPE: _pose,
+    topics.IMU_TYPE: _imu,
+    topics.ODOM_TYPE: _odom,
+    topics.TWIST_STAMPED_TYPE: _twist,
+    topics.WRENCH_STAMPED_TYPE: _wrench,
+    ts.THRUSTER_COMMANDS: _thrusters,
+    ts.DECISION: _decision,
+    ts.OBSTACLE_LAYOUT: _layout,
+    ts.EVENT: _event,
+}
+
+SAMPLE_TYPES: frozenset[str] = frozenset(_DECODERS)
+"""Message types :func:`to_record` converts."""
+
+
+def to_record(msgtype: str, msg: Any) -> Record | None:
+    """Convert a decoded message to a sample or record.
+
+    Args:
+        msgtype: Full message type name, e.g. ``"sensor_msgs/msg/Imu"``.
+        msg: The decoded message (rosbags object or same attribute names).
+
+    Returns:
+        The sample or record, or None for types without one (e.g. the lab's
+        per-thruster Wrench topics, which ``/hil/thrusters`` duplicates losslessly).
+
+    Raises:
+        SampleError: The message holds a value a sample refuses (NaN, unknown frame).
+        RecordValueError: The message holds a value a record refuses.
+    """
+    decoder = _DECODERS.get(msgtype)
+    return None if decoder is None else decoder(msg)
+
+
+# ---------------------------------------------------------------- fast reading
+
+_STAMP_LEN = struct.Struct("<iII")  # sec, nanosec, frame_id length (with NUL)
+_LEN = struct.Struct("<I")
+
+
+@cache
+def _doubles(n: int) -> struct.Struct:
+    return struct.Struct(f"<{n}d")
+
+
+def _unpack_stamped(
+    data: bytes, n: int, child: bool = False
+) -> tuple[int, str, tuple[float, ...]] | None:
+    """Unpack header + n float64 of a little-endian CDR payload; None if it does not fit."""
+    if len(data) < 16 or data[1] != 1:  # encapsulation 0x0001: CDR little endian
+        return None
+    sec, nsec, str_len = _STAMP_LEN.unpack_from(data, 4)
+    offset = 16 + str_len
+    frame = data[16 : offset - 1].decode("utf-8", "replace")
+    if child:
+        offset += _pad(offset - 4, 4)
+        if offset + 4 > len(data):
+            return None
+        (child_len,) = _LEN.unpack_from(data, offset)
+        offset += 4 + child_len
+    offset += _pad(offset - 4, 8)
+    if len(data) != offset + 8 * n:
+        return None
+    return sec * _NS + nsec, frame, _doubles(n).unpack_from(data, offset)
+
+
+def _yaw_xyzw(x: float, y: float, z: float, w: float) -> float:
+    return float(wrap_angle(math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))))
+
+
+def _fast_pose(data: bytes) -> Record | None:
+    got = _unpack_stamped(data, 7 + 36)
+    if got is None:
+        return None
+    t_ns, frame_id, v = got
+    try:
+        frame = Frame(frame_id)
+    except ValueError:
+        return None  # the slow path words the error
+    return PoseSample(t_ns, v[0], v[1], _yaw_xyzw(v[3], v[4], v[5], v[6]), frame)
+
+
+def _fast_imu(data: bytes) -> Record | None:
+    got = _unpack_stamped(data, 37)
+    if got is None:
+        return None
+    t_ns, _, v = got
+    return ImuSample(t_ns, v[25], v[26], v[15])
+
+
+def _fast_odom(data: bytes) -> Record | None:
+    got = _unpack_stamped(data, 85, child=True)
+    if got is None:
+        return None
+    t_ns, _, v = got
+    return StateEstimate(t_ns, v[0], v[1], _yaw_xyzw(v[3], v[4], v[5], v[6]), v[43], v[44], v[48])
+
+
+def _fast_twist(data: bytes) -> Record | None:
+    got = _unpack_stamped(data, 6)
+    if got is None:
+        return None
+    t_ns, _, v = got
+    return VelocityReference(t_ns, v[0], v[1], v[5])
+
+
+def _fast_wrench(data: bytes) -> Record | None:
+    got = _unpack_stamped(data, 6)
+    if got is None:
+        return None
+    t_ns, _, v = got
+    return ForceCommand(t_ns, v[0], v[1], v[5])
+
+
+def _fast_thrusters(data: bytes) -> Record | None:
+    got = _unpack_stamped(data, 5)
+    if got is None:
+        return None
+    t_ns, _, v = got
+    return ThrusterCommand(t_ns, *v)
+
+
+FAST_DECODERS: dict[str, Callable[[bytes], Record | None]] = {
+    topics.POSE_TYPE: _fast_pose,
+    topics.IMU_TYPE: _fast_imu,
+    topics.ODOM_TYPE: _fast_odom,
+    topics.TWIST_STAMPED_TYPE: _fast_twist,
+    topics.WRENCH_STAMPED_TYPE: _fast_wrench,
+    ts.THRUSTER_COMMANDS: _fast_thrusters,
+}
+"""Message type -> decoder straight from a CDR payload to a sample, for fixed layouts.
+
+Each returns None when the payload is not the expected little-endian layout (a
+foreign frame layout, big endian); the caller then decodes with rosbags.
+Values a sample refuses (NaN) raise as in :func:`to_record`.
+"""

@@ -1,0 +1,149 @@
+"""The resim check: the recorded run simulated again with the current code (closed loop).
+
+The recorded scenario, seed and start (from the suite manifest beside the log
+when there is one, else the run specification in the metadata, else the first
+recorded pose) are simulated again and the trajectory, decisions and tracking
+error compared with the recording.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+
+from hil.bag.run_data import RunData
+from hil.core.tracking import tracking_error
+from hil.replay.controllers import ScenarioMismatchError
+from hil.replay.decisions import decision_findings
+from hil.replay.options import Tolerance
+from hil.replay.regression import Check, Finding, Status, time_s
+from hil.replay.tracking_checks import tracking_findings
+from hil.runs.sim_run import SimRunSpec, run_in_sim, spec_from_json
+from hil.runtime.settings import LoopConfig
+from hil.runtime.trace import MemoryLog
+
+NS_PER_S = 1_000_000_000
+MANIFEST = "suite.json"
+"""File beside a suite's logs that holds each run's full specification (start, faults)."""
+
+
+def recorded_spec(run: RunData) -> tuple[SimRunSpec, str]:
+    """Return the specification that reproduces `run` and where it came from.
+
+    The suite manifest beside the log holds the exact start, faults and motions;
+    without it the metadata's scenario and seed are used with the first recorded
+    pose as start (noisy by the sensor's noise, so decisions may drift).
+
+    Raises:
+        ScenarioMismatchError: Without a manifest entry, the log lacks scenario or seed.
+    """
+    manifest = run.path.parent / MANIFEST
+    if manifest.is_file():
+        try:
+            entries = json.loads(manifest.read_text()).get("runs", {})
+        except (OSError, ValueError, AttributeError):
+            entries = {}
+        entry = entries.get(run.path.name) if isinstance(entries, dict) else None
+        if isinstance(entry, dict):
+            return spec_from_json(entry), f"{MANIFEST} entry"
+    info = run.info.run
+    if info is not None and info.run_spec:
+        try:
+            return spec_from_json(json.loads(info.run_spec)), "run specification in the metadata"
+        except ValueError:
+            pass  # a damaged entry: fall back to scenario, seed and first pose
+    if info is None or info.seed is None or not info.scenario_file or not len(run.pose):
+        raise ScenarioMismatchError(
+            f"{str(run.path)!r} lacks the scenario, seed or poses needed to re-simulate it"
+        )
+    x, y, psi = (float(v) for v in run.pose.values[0])
+    return SimRunSpec(
+        scenario=info.scenario_file,
+        seed=info.seed,
+        start=(x, y, psi),
+        loop=LoopConfig(max_duration_s=run.last_stamp_ns / NS_PER_S + 30.0),
+    ), "first recorded pose (start not in the metadata)"
+
+
+def check_resim(run: RunData, tolerance: Tolerance) -> Check:
+    """Re-simulate the run with the current code and compare it with the recording."""
+    try:
+        spec, source = recorded_spec(run)
+    except (ScenarioMismatchError, ValueError) as err:
+        return Check("resim", Status.SKIP, str(err))
+    log = MemoryLog()
+    summary = run_in_sim(spec, log=log)
+    est_t = np.array([e[0] for e in log.estimates], dtype=np.int64)
+    est = np.array([np.concatenate([e[1], e[2]]) for e in log.estimates]).reshape(-1, 6)
+    ref_t = np.array([r[0] for r in log.velocity_references], dtype=np.int64)
+    ref = np.array([r[1] for r in log.velocity_references]).reshape(-1, 3)
+    exact = source.endswith("entry")
+    # From the first (noisy) pose the re-simulation drifts by the sensor noise: the
+    # trajectory and the decisions are then compared for information only.
+    drift = Status.FAIL if exact else Status.WARN
+    graded: list[tuple[Status, Finding]] = []
+    t, i, j = np.intersect1d(run.estimate.t_ns, est_t, return_indices=True)
+    deviation = np.hypot(*(est[j, :2] - run.estimate.values[i, :2]).T) if t.size else np.zeros(0)
+    worst = float(deviation.max()) if deviation.size else math.nan
+    if deviation.size and worst > tolerance.resim_position_m:
+        k = int(np.flatnonzero(deviation > tolerance.resim_position_m)[0])
+        graded.append(
+            (
+                drift,
+                Finding(
+                    "trajectory departs from the recording by more than "
+                    f"{tolerance.resim_position_m} m (largest {worst:.3f} m)",
+                    int(t[k]),
+                    {"max_deviation_m": worst},
+                ),
+            )
+        )
+    recorded_docked = any(e.code == "docked" for e in run.events)
+    if summary.docked != recorded_docked:
+        graded.append(
+            (
+                Status.FAIL,
+                Finding(
+                    f"recording {'docked' if recorded_docked else 'did not dock'}, re-simulation "
+                    f"{'docked' if summary.docked else 'did not'} ({summary.end_reason})"
+                ),
+            )
+        )
+    decision_diffs = decision_findings(run.decisions, log.decisions)
+    graded += [(drift, f) for f in decision_diffs]
+    graded += [
+        (Status.FAIL if exact else Status.WARN, f)
+        for f in tracking_findings(
+            "resim",
+            run.tracking_error(),
+            tracking_error(est_t, est[:, 3:6], ref_t, ref),
+            tolerance.relative if exact else max(tolerance.relative, 0.25),
+        )
+    ]
+    graded.sort(key=lambda g: g[1].t_ns if g[1].t_ns is not None else -1)
+    findings = tuple(f for _, f in graded)
+    metrics = {
+        "start_from": source,
+        "max_deviation_m": worst,
+        "docked": summary.docked,
+        "decision_differences": len(decision_diffs),
+    }
+    if not findings:
+        return Check(
+            "resim",
+            Status.PASS,
+            f"re-simulation reproduces the recording (start from {source}; "
+            f"largest deviation {worst:.4f} m)",
+            (),
+            metrics,
+        )
+    return Check(
+        "resim",
+        Status.worst([g for g, _ in graded]),
+        f"re-simulation differs from the recording, first at "
+        f"{time_s(findings[0].t_ns)} (start from {source})",
+        findings,
+        metrics,
+    )

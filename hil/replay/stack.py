@@ -1,0 +1,185 @@
+"""The stack check: the full stack re-run on the recorded streams.
+
+The observer, decisions, PID and allocation are re-run by
+:class:`hil.runtime.loop.Runtime` on the recorded sensor and obstacle streams
+through the ``log`` adapters, ticking when the recording ticked; its estimates,
+decisions, references, thruster commands and tracking error must reproduce the
+recording.
+"""
+
+from __future__ import annotations
+
+import contextlib
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hil.adapters.interfaces import ThrusterSinkError
+from hil.adapters.log import LogWorld, thruster_failures_ns
+from hil.bag.run_data import RunData, Series
+from hil.core.geometry import wrap_angles
+from hil.core.samples import ThrusterCommand
+from hil.core.tracking import tracking_error
+from hil.replay.controllers import ControllerCache
+from hil.replay.decisions import decision_findings
+from hil.replay.options import ReplayOptions
+from hil.replay.regression import Check, Finding, Status, time_s
+from hil.replay.tracking_checks import tracking_findings
+from hil.runs.sim_run import build_runtime
+from hil.runtime.loop import Mode, World
+from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer
+from hil.runtime.settings import LoopConfig
+from hil.runtime.trace import MemoryLog
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+NS_PER_S = 1_000_000_000
+
+
+def tick_times(run: RunData) -> IntArray:
+    """Return the loop's tick times in the recording (ns), sorted.
+
+    Every tick sends a thruster command (zero while waiting or holding) or logs
+    that the link failed, so the ticks are the command times and failure times.
+    """
+    failures = np.array(sorted(thruster_failures_ns(run)), dtype=np.int64)
+    return np.unique(np.concatenate([run.thrusters.t_ns, failures]))
+
+
+def _infer_loop(run: RunData) -> LoopConfig:
+    """Return the loop timing the recording shows (defaults where it does not)."""
+    loop_hz = LoopConfig().loop_hz
+    if len(run.estimate) > 2:
+        dt = float(np.median(np.diff(run.estimate.t_ns))) / NS_PER_S
+        if dt > 0:
+            loop_hz = round(1.0 / dt, 6)
+    # Stop at the recording's last sample: a truncated log ends there too.
+    return LoopConfig(loop_hz=loop_hz, max_duration_s=max(run.last_stamp_ns / NS_PER_S, 1e-3))
+
+
+def _compare_streams(
+    name: str,
+    recorded: Series,
+    t_ns: IntArray,
+    values: FloatArray,
+    tol: float,
+    angle_columns: tuple[int, ...] = (),
+) -> list[Finding]:
+    findings: list[Finding] = []
+    t, i, j = np.intersect1d(recorded.t_ns, t_ns, return_indices=True)
+    missing = np.setdiff1d(recorded.t_ns, t_ns)
+    extra = np.setdiff1d(t_ns, recorded.t_ns)
+    if missing.size:
+        findings.append(
+            Finding(
+                f"{name}: {missing.size} recorded sample(s) not reproduced",
+                int(missing[0]),
+                {"count": int(missing.size)},
+            )
+        )
+    if extra.size:
+        findings.append(
+            Finding(
+                f"{name}: {extra.size} sample(s) the recording does not have",
+                int(extra[0]),
+                {"count": int(extra.size)},
+            )
+        )
+    if t.size:
+        diff = values[j] - recorded.values[i]
+        for c in angle_columns:
+            diff[:, c] = wrap_angles(diff[:, c])
+        err = np.abs(diff).max(axis=1)
+        bad = np.flatnonzero(err > tol)
+        if bad.size:
+            k = int(bad[0])
+            findings.append(
+                Finding(
+                    f"{name}: {bad.size} sample(s) differ by more than {tol:g}, largest "
+                    f"{float(err.max()):.3g}; first: recorded "
+                    f"{np.round(recorded.values[i[k]], 5).tolist()}, replayed "
+                    f"{np.round(values[j[k]], 5).tolist()}",
+                    int(t[k]),
+                    {"count": int(bad.size), "max_diff": float(err.max())},
+                )
+            )
+    return findings
+
+
+def check_stack(run: RunData, controllers: ControllerCache, options: ReplayOptions) -> Check:
+    """Re-run the full stack on the recorded streams and compare with the recording."""
+    if not len(run.pose) or not run.layouts:
+        return Check("stack", Status.SKIP, "the log holds no poses or no obstacle layout")
+    world = LogWorld(run, options.log)
+    log = MemoryLog()
+    loop = _infer_loop(run)
+    runtime = build_runtime(
+        controllers.scenario,
+        World(world.clock, world.pose, world.imu, world.obstacles, world.thrusters),
+        log,
+        loop,
+        controllers.synthesizer,
+        ResynthesisMode.INLINE,
+    )
+    # The same composition, with the cached solver: identical controllers, one synthesis.
+    runtime.resynthesizer = Resynthesizer(controllers, ResynthesisMode.INLINE)
+    # Tick when the recording ticked (every tick sends a command or logs its failure):
+    # the sim's fixed period, or a vessel's wall-clock ticks with their jitter.
+    for t_ns in tick_times(run):
+        world.clock.sleep_until(int(t_ns))
+        if runtime.mode in (Mode.DOCKED, Mode.STOPPED):
+            # Runtime.run() zeroes the thrusters once on its way out, at the next tick.
+            with contextlib.suppress(ThrusterSinkError):
+                world.thrusters.send(ThrusterCommand.zero(int(t_ns)))
+            break
+        runtime.tick(int(t_ns))
+    stats = runtime.stats
+    tol = options.tolerance
+    est_t = np.array([e[0] for e in log.estimates], dtype=np.int64)
+    est = np.array([np.concatenate([e[1], e[2]]) for e in log.estimates]).reshape(-1, 6)
+    ref_t = np.array([r[0] for r in log.velocity_references], dtype=np.int64)
+    ref = np.array([r[1] for r in log.velocity_references]).reshape(-1, 3)
+    cmd_t, cmd = world.thrusters.as_array()
+    end = run.last_stamp_ns  # what the loop does after the recording's last sample is not compared
+    est_t, est = est_t[est_t <= end], est[est_t <= end]
+    ref_t, ref = ref_t[ref_t <= end], ref[ref_t <= end]
+    cmd_t, cmd = cmd_t[cmd_t <= end], cmd[cmd_t <= end]
+    findings = [
+        *_compare_streams("estimates", run.estimate, est_t, est, tol.estimate, (2,)),
+        *decision_findings(run.decisions, [d for d in log.decisions if d.t_ns <= end]),
+        *_compare_streams("velocity references", run.reference, ref_t, ref, tol.estimate),
+        *_compare_streams("thruster commands", run.thrusters, cmd_t, cmd, tol.command, (3, 4)),
+        *tracking_findings(
+            "stack",
+            run.tracking_error(),
+            tracking_error(est_t, est[:, 3:6], ref_t, ref),
+            tol.relative,
+        ),
+    ]
+    findings.sort(key=lambda f: f.t_ns if f.t_ns is not None else -1)
+    metrics = {
+        "ticks": len(est_t),
+        "decisions": stats.decisions,
+        "end_reason": stats.end_reason,
+        "commands": len(cmd_t),
+    }
+    if findings:
+        # Over ROS, which samples a tick saw depends on DDS arrival times, which the log
+        # does not hold: the re-run cannot be exact, so a difference only warns there.
+        over_ros = run.info.run is not None and run.info.run.backend == "ros"
+        note = " (a ROS run: sample arrival per tick is not recorded, advisory)" if over_ros else ""
+        return Check(
+            "stack",
+            Status.WARN if over_ros else Status.FAIL,
+            f"the re-run stack does not reproduce the recording, first at "
+            f"{time_s(findings[0].t_ns)}{note}",
+            tuple(findings),
+            metrics,
+        )
+    return Check(
+        "stack",
+        Status.PASS,
+        f"{len(est_t)} ticks, {stats.decisions} decisions and {len(cmd_t)} commands reproduced",
+        (),
+        metrics,
+    )

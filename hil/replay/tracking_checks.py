@@ -1,0 +1,195 @@
+"""The tracking and margin checks, on the one tracking error of :mod:`hil.core.tracking`.
+
+- ``tracking``: velocity-tracking error per axis (RMS, max) of the recorded
+  estimates (odometry) against the recorded references, against thresholds
+  (default the paper's tank figures, advisory unless ``--tolerance`` sets them).
+- ``margin``: the guarantee's assumption, that the tracking error stayed within
+  the margin the controller was synthesized for; says where it did not (WARN).
+
+Errors are computed in SI and shown (messages, metrics) with yaw in deg/s.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hil.bag.run_data import RunData
+from hil.core.tracking import AXES, DISPLAY_UNITS, TrackingSeries, for_display
+from hil.replay.options import Tolerance
+from hil.replay.regression import Check, Finding, Status, time_s
+from hil.scenarios import Scenario
+
+FloatArray = NDArray[np.float64]
+NS_PER_S = 1_000_000_000
+_AXES = AXES
+_UNITS = DISPLAY_UNITS
+
+
+def _metrics(series: TrackingSeries) -> dict[str, Any]:
+    """Return RMS, max and time of max per axis (yaw in deg/s), JSON-ready."""
+    peak, when = series.peak()
+    return {
+        "samples": len(series),
+        "rms": [float(v) for v in for_display(series.rms())],
+        "max_abs": [float(v) for v in for_display(peak)],
+        "t_max_ns": [int(v) for v in when],
+    }
+
+
+def _axes_text(values: FloatArray) -> str:
+    return ", ".join(f"{a} {v:.5f} {u}" for a, v, u in zip(_AXES, values, _UNITS, strict=True))
+
+
+def check_tracking(run: RunData, tolerance: Tolerance) -> Check:
+    """Compare the recorded tracking error's RMS per axis with the thresholds."""
+    series = run.tracking_error()
+    if not len(series.t_ns):
+        return Check("tracking", Status.SKIP, "no velocity references with estimates")
+    rms = for_display(series.rms())
+    peak_si, when = series.peak()
+    peak = for_display(peak_si)
+    limit = np.array(tolerance.rms)
+    over = [k for k in range(3) if rms[k] > limit[k]]
+    findings = [
+        Finding(
+            f"{_AXES[k]} RMS {rms[k]:.5f} {_UNITS[k]} > threshold {limit[k]:.5f}; "
+            f"largest error {peak[k]:.4f} {_UNITS[k]}",
+            int(when[k]),
+            {
+                "axis": _AXES[k],
+                "rms": float(rms[k]),
+                "threshold": float(limit[k]),
+                "max_abs": float(peak[k]),
+            },
+        )
+        for k in over
+    ]
+    peak_limit = np.array(tolerance.max_abs if tolerance.max_abs is not None else [math.inf] * 3)
+    over_peak = [k for k in range(3) if peak[k] > peak_limit[k]]
+    findings += [
+        Finding(
+            f"{_AXES[k]} error {peak[k]:.4f} {_UNITS[k]} > max threshold {peak_limit[k]:.4f}",
+            int(when[k]),
+            {"axis": _AXES[k], "max_abs": float(peak[k]), "threshold": float(peak_limit[k])},
+        )
+        for k in over_peak
+    ]
+    source = "" if tolerance.enforce_rms else " (the paper's tank figures, advisory)"
+    text = f"RMS {_axes_text(rms)}; max {_axes_text(peak)}"
+    metrics = {
+        **_metrics(series),
+        "threshold_rms": list(tolerance.rms),
+        "threshold_max_abs": [float(v) for v in peak_limit],
+    }
+    if not findings:
+        return Check("tracking", Status.PASS, f"{text}; within thresholds{source}", (), metrics)
+    status = Status.FAIL if tolerance.enforce_rms or over_peak else Status.WARN
+    axes = ", ".join(sorted({_AXES[k] for k in [*over, *over_peak]}, key=_AXES.index))
+    return Check(
+        "tracking", status, f"{text}; above threshold{source} in {axes}", tuple(findings), metrics
+    )
+
+
+def _spans(mask: NDArray[np.bool_]) -> list[tuple[int, int]]:
+    """Return [start, stop) index spans where `mask` is True."""
+    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    return list(
+        zip(np.flatnonzero(edges == 1).tolist(), np.flatnonzero(edges == -1).tolist(), strict=True)
+    )
+
+
+def check_margin(run: RunData, scenario: Scenario, settle_s: float = 1.0) -> Check:
+    """Re-check the guarantee's assumption: |nu - nu_ref| within the scenario's margin.
+
+    Samples less than `settle_s` after a decision are not checked (the step
+    transient; see :class:`Tolerance`).
+    """
+    series = run.tracking_error()
+    if not len(series.t_ns):
+        return Check("margin", Status.SKIP, "no velocity references with estimates")
+    margin_si = scenario.margin.as_array()
+    margin = for_display(margin_si)
+    decided = np.array([d.t_ns for d in run.decisions], dtype=np.int64)
+    last = np.searchsorted(decided, series.t_ns, side="right") - 1
+    since_ns = series.t_ns - np.where(last >= 0, decided[np.maximum(last, 0)], 0)
+    settled = since_ns >= round(settle_s * NS_PER_S)
+    over = (np.abs(series.error) > margin_si) & settled[:, None]
+    shown = for_display(np.abs(series.error))
+    findings: list[Finding] = []
+    for k in range(3):
+        for start, stop in _spans(over[:, k])[:3]:
+            worst = float(shown[start:stop, k].max())
+            findings.append(
+                Finding(
+                    f"{_AXES[k]} error up to {worst:.4f} {_UNITS[k]} > margin {margin[k]:.4f} "
+                    f"until {time_s(int(series.t_ns[stop - 1]))}",
+                    int(series.t_ns[start]),
+                    {
+                        "axis": _AXES[k],
+                        "max_abs": worst,
+                        "margin": float(margin[k]),
+                        "until_ns": int(series.t_ns[stop - 1]),
+                    },
+                )
+            )
+    findings.sort(key=lambda f: f.t_ns or 0)
+    share = over.sum(axis=0) / max(1, int(settled.sum()))
+    metrics = {
+        "margin": [float(v) for v in margin],
+        "settle_s": settle_s,
+        "samples_checked": int(settled.sum()),
+        "share_outside": [float(v) for v in share],
+    }
+    if not over.any():
+        return Check(
+            "margin",
+            Status.PASS,
+            f"tracking error within the margin {_axes_text(margin)} "
+            f"from {settle_s:g} s after each decision on",
+            (),
+            metrics,
+        )
+    note = " (zero margin: the paper's assumption of perfect tracking)" if not margin.any() else ""
+    outside = ", ".join(f"{a} {100 * s:.0f}%" for a, s in zip(_AXES, share, strict=True))
+    return Check(
+        "margin",
+        Status.WARN,
+        f"tracking error outside the synthesized margin{note} on {outside} of the "
+        f"samples {settle_s:g} s or more after a decision; the guarantee does not "
+        "cover those spans",
+        tuple(findings),
+        metrics,
+    )
+
+
+def tracking_findings(
+    name: str, recorded: TrackingSeries, replayed: TrackingSeries, relative: float
+) -> list[Finding]:
+    """Compare RMS and max per axis; a difference beyond `relative` is reported."""
+    findings = []
+    r_rms, n_rms = for_display(recorded.rms()), for_display(replayed.rms())
+    (r_peak, r_when), (n_peak, n_when) = recorded.peak(), replayed.peak()
+    r_max, n_max = for_display(r_peak), for_display(n_peak)
+    for k in range(3):
+        for what, a, b in (("RMS", r_rms[k], n_rms[k]), ("max", r_max[k], n_max[k])):
+            floor = 1e-9 if _AXES[k] != "yaw" else 1e-7
+            if abs(a - b) > relative * max(abs(a), abs(b)) + floor:
+                when = int(r_when[k] if r_max[k] >= n_max[k] else n_when[k])
+                findings.append(
+                    Finding(
+                        f"{name}: {_AXES[k]} tracking {what} recorded {a:.5f} {_UNITS[k]}, "
+                        f"replayed {b:.5f} {_UNITS[k]}",
+                        when,
+                        {
+                            "axis": _AXES[k],
+                            "measure": what,
+                            "recorded": float(a),
+                            "replayed": float(b),
+                        },
+                    )
+                )
+    return findings

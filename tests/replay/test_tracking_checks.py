@@ -1,0 +1,66 @@
+"""The tracking and margin checks on the recorded tracking error."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hil.bag.reader import BagInfo
+from hil.bag.run_data import RunData, Series
+from hil.core.records import Decision
+from hil.replay.options import Tolerance
+from hil.replay.regression import Status
+from hil.replay.tracking_checks import check_margin, check_tracking
+from hil.scenarios import TrackingMargin, load_scenario
+
+
+def _synthetic_run(errors: dict[int, float]) -> RunData:
+    """Estimates and references at 20 Hz for 4 s, decisions at 0 s and 2 s; surge errors."""
+    t = np.arange(80, dtype=np.int64) * 50_000_000
+    est = np.zeros((80, 6))
+    for k, e in errors.items():
+        est[k, 3] = e
+    decisions = tuple(
+        Decision.from_arrays(int(td), [0, 0, 0], 0, 5.0, True, [], [], -1, 1, "h")
+        for td in (0, 2_000_000_000)
+    )
+    return RunData(
+        path=Path("synthetic"),
+        info=BagInfo(Path("synthetic"), "mcap", (), (), None, None),
+        pose=Series.empty(3),
+        imu=Series.empty(3),
+        estimate=Series(t, est),
+        reference=Series(t, np.zeros((80, 3))),
+        force=Series.empty(3),
+        thrusters=Series.empty(5),
+        decisions=decisions,
+        layouts=(),
+        events=(),
+    )
+
+
+def test_margin_check_says_where_the_error_left_the_margin_after_settling() -> None:
+    scenario = load_scenario("coarse").with_margin(TrackingMargin(0.01, 0.02, 0.03))
+    # 0.05 m/s at 0.5 s: inside the settling second, not checked; at 3.5 s: outside.
+    check = check_margin(_synthetic_run({10: 0.05, 70: 0.05}), scenario, settle_s=1.0)
+    assert check.status is Status.WARN
+    (finding,) = check.findings
+    assert finding.t_ns == 3_500_000_000
+    assert finding.data["axis"] == "surge"
+    assert check_margin(_synthetic_run({10: 0.05}), scenario).status is Status.PASS
+    assert check_margin(_synthetic_run({10: 0.05}), scenario, settle_s=0.0).status is Status.WARN
+
+
+def test_tracking_metrics_show_yaw_in_degrees_per_second() -> None:
+    run = _synthetic_run({})
+    yaw = np.zeros((80, 6))
+    yaw[:, 5] = 0.01  # rad/s against a zero reference
+    run = dataclasses.replace(run, estimate=Series(run.estimate.t_ns, yaw))
+    check = check_tracking(run, Tolerance())
+    assert check.metrics["rms"] == pytest.approx([0.0, 0.0, math.degrees(0.01)])
+    assert check.metrics["max_abs"][2] == pytest.approx(math.degrees(0.01))
+    assert "yaw 0.57296 deg/s" in check.summary
