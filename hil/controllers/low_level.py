@@ -35,9 +35,9 @@ from hil.controllers.allocation_kernels import matvec, mma_allocate, pseudo_inve
 from hil.controllers.pid import (
     DEFAULT_GAINS,
     N_PID_STATE,
-    NonFiniteInputError,
     PidConfigError,
     PidGains,
+    checked_vec3,
     pid_command,
     pid_integrate,
 )
@@ -218,15 +218,6 @@ class LowLevelTick:
     achieved_n: FloatArray
 
 
-def _vec3(name: str, value: FloatArray) -> FloatArray:
-    arr = np.asarray(value, dtype=np.float64)
-    if arr.shape != (3,):
-        raise PidConfigError(f"{name} must have shape (3,), got {arr.shape!r}")
-    if not np.all(np.isfinite(arr)):
-        raise NonFiniteInputError(f"{name} must be finite, got {arr.tolist()!r}")
-    return arr
-
-
 class LowLevelController:
     """The low level with its state: call :meth:`tick` once per control period.
 
@@ -254,7 +245,7 @@ class LowLevelController:
         Raises:
             NonFiniteInputError: If either holds NaN or inf; the state is unchanged.
         """
-        ref = _vec3("nu_ref", nu_ref)
-        est = _vec3("nu_hat", nu_hat)
+        ref = checked_vec3("nu_ref", nu_ref)
+        est = checked_vec3("nu_hat", nu_hat)
         tau, u, alpha, ach, self._state = low_level_tick(self._arrays, self._state, ref, est)
         return LowLevelTick(tau, u, alpha, ach)

@@ -263,7 +263,13 @@ class PidOutput:
     tau_raw_n: FloatArray
 
 
-def _vec3(name: str, value: FloatArray) -> FloatArray:
+def checked_vec3(name: str, value: FloatArray) -> FloatArray:
+    """Return `value` as a float array of shape (3,), or raise naming `name`.
+
+    Raises:
+        PidConfigError: Wrong shape.
+        NonFiniteInputError: NaN or inf in it.
+    """
     arr = np.asarray(value, dtype=np.float64)
     if arr.shape != (3,):
         raise PidConfigError(f"{name} must have shape (3,), got {arr.shape!r}")
@@ -310,8 +316,8 @@ class VelocityPid:
         Raises:
             NonFiniteInputError: If either holds NaN or inf; the state is unchanged.
         """
-        ref = _vec3("nu_ref", nu_ref)
-        est = _vec3("nu_hat", nu_hat)
+        ref = checked_vec3("nu_ref", nu_ref)
+        est = checked_vec3("nu_hat", nu_hat)
         tau, raw, self._s = pid_command(self._g, self._m, self._coef, self._s, ref, est, self.dt_s)
         return PidOutput(tau, raw)
 
@@ -319,9 +325,9 @@ class VelocityPid:
         self, nu_ref: FloatArray, nu_hat: FloatArray, output: PidOutput, tau_achieved: FloatArray
     ) -> None:
         """Advance the integrator given the force actually achieved, shape (3,)."""
-        ref = _vec3("nu_ref", nu_ref)
-        est = _vec3("nu_hat", nu_hat)
-        ach = _vec3("tau_achieved", tau_achieved)
+        ref = checked_vec3("nu_ref", nu_ref)
+        est = checked_vec3("nu_hat", nu_hat)
+        ach = checked_vec3("tau_achieved", tau_achieved)
         self._s = pid_integrate(
             self._g, self._m, self._s, ref, est, output.tau_raw_n, ach, self.dt_s
         )
