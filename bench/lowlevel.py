@@ -14,7 +14,8 @@ Printed beside the paper's tank figures, with the least error the thrust limits 
 for the same steps (an ideal jerk- and acceleration-limited response, see
 `ideal_step_error`), and a per-axis bound on the error after settling (the part of
 each 2-s window after 1 s), which the symbolic layer's robustness margin can use: the
-scenario's ``[margin]`` is its maximum, rounded up, printed as a TOML table.
+scenario's ``[margin]`` is its maximum, rounded up, printed as a TOML table
+(:mod:`hil.sim.margin` holds the recipe; a test checks the packaged scenarios ship it).
 
 Speed: a 3-minute run (100 Hz physics, sensors + EKF + PID + allocation + vessel) in
 the compiled loop, against the same loop run by the Python interpreter
@@ -43,34 +44,30 @@ from hil.model.coefficients import VesselParams
 from hil.model.dynamics import hydro_force
 from hil.model.environment import EnvironmentalLoad
 from hil.model.thrusters import ThrusterParams
+from hil.scenarios import load_scenario
 from hil.sim.closed_loop import (
     ClosedLoopResult,
     LowLevelConfig,
     simulate_closed_loop,
 )
+from hil.sim.margin import (
+    MARGIN_DIGITS,
+    SEED0,
+    MarginRecipe,
+    input_grid,
+    margin_from,
+    random_walk_refs,
+    settled_error,
+)
 
 F = NDArray[np.float64]
 
-GRID_LO = np.array([-0.1, -0.1, -0.2])
-GRID_HI = np.array([0.2, 0.1, 0.2])
-GRID_STEP = np.array([0.05, 0.05, 0.1])
+GRID = input_grid(load_scenario("paper"))  # (lo, hi, step) of the paper's input grid
 # Paper, Sec. V-C ("MSE" as printed): surge m/s, sway m/s, yaw deg/s.
 PAPER = np.array([0.00768, 0.00431, 0.62108])
 AXES = ("surge m/s", "sway m/s", "yaw deg/s")
-SETTLE_AFTER_S = 1.0
-MARGIN_DIGITS = 4  # decimals of the scenario's [margin] entries (m/s, m/s, rad/s)
 
 
-def random_walk_refs(n: int, seed: int) -> F:
-    """Return (n, 3) references: a random walk on the grid, one step per axis at most."""
-    rng = np.random.default_rng(seed)
-    top = np.round((GRID_HI - GRID_LO) / GRID_STEP).astype(int)
-    idx = np.round(-GRID_LO / GRID_STEP).astype(int)  # start at zero velocity
-    out = np.empty((n, 3))
-    for k in range(n):
-        idx = np.clip(idx + rng.integers(-1, 2, size=3), 0, top)
-        out[k] = GRID_LO + idx * GRID_STEP
-    return out
 
 
 def axis_limits(vessel: VesselParams, thrusters: ThrusterParams, *, with_slew: bool) -> tuple[F, F]:
@@ -173,11 +170,6 @@ def tracking_errors(res: ClosedLoopResult) -> F:
     return out
 
 
-def settled_mask(res: ClosedLoopResult, period_s: float) -> NDArray[np.bool_]:
-    """Return which rows lie at least SETTLE_AFTER_S into their 2-s window."""
-    phase = np.mod(res.t_s + 1e-9, period_s)
-    out: NDArray[np.bool_] = phase >= SETTLE_AFTER_S
-    return out
 
 
 def to_display(x: F) -> F:
@@ -187,11 +179,6 @@ def to_display(x: F) -> F:
     return out
 
 
-def margin_from(worst: F) -> F:
-    """Return the [margin] entries (m/s, m/s, rad/s), shape (3,): `worst` rounded up."""
-    scale = 10.0**MARGIN_DIGITS
-    out: F = np.ceil(np.asarray(worst) * scale - 1e-9) / scale
-    return out
 
 
 def fmt_row(label: str, values: F, digits: int = 5) -> str:
@@ -211,9 +198,10 @@ def interpreted_seconds(span_s: float) -> float:
     """Time `span_s` simulated seconds of the same loop under NUMBA_DISABLE_JIT=1."""
     code = (
         "import time, numpy as np\n"
-        "from bench.lowlevel import random_walk_refs\n"
+        "from bench.lowlevel import GRID\n"
+        "from hil.sim.margin import random_walk_refs\n"
         "from hil.sim.closed_loop import simulate_closed_loop, LowLevelConfig\n"
-        f"refs = random_walk_refs({max(1, round(span_s / 2.0))}, 0)\n"
+        f"refs = random_walk_refs({max(1, round(span_s / 2.0))}, 0, GRID)\n"
         "t = time.process_time(); simulate_closed_loop(refs, LowLevelConfig())\n"
         "print(time.process_time() - t)\n"
     )
@@ -237,7 +225,8 @@ def main(argv: list[str] | None = None) -> int:
     cfg = LowLevelConfig()
     period = cfg.command_period_s
     n_ref = max(1, round(args.seconds / period))
-    refs = [random_walk_refs(n_ref, 1000 + s) for s in range(args.seeds)]
+    recipe = MarginRecipe(seeds=args.seeds, seconds=args.seconds)
+    refs = [random_walk_refs(n_ref, SEED0 + s, GRID) for s in range(args.seeds)]
 
     t0 = time.perf_counter()
     simulate_closed_loop(refs[0][:2], cfg)  # compile (or load the cache)
@@ -314,14 +303,11 @@ def main(argv: list[str] | None = None) -> int:
     )
 
     # ---- settled bound (for the symbolic layer's margin) ----
-    settled = np.vstack(
-        [np.abs(tracking_errors(res))[settled_mask(res, period)] for res in default_runs]
-    )
-    p99 = np.percentile(settled, 99.0, axis=0)
-    worst = settled.max(axis=0)
+    settled = settled_error(default_runs, period, recipe.settle_after_s)
+    p99, worst = settled.p99, settled.worst
     print(
         f"\nerror after settling (|nu - nu_ref| over the part of each window after "
-        f"{SETTLE_AFTER_S:.0f} s, default config)"
+        f"{recipe.settle_after_s:g} s, default config)"
     )
     print(f"  {'':<44}{header}")
     print(fmt_row("99th percentile", to_display(p99)))
@@ -338,7 +324,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"  yaw_rate_radps = {margin[2]:.{MARGIN_DIGITS}f}")
 
     # ---- speed ----
-    long_refs = random_walk_refs(round(180.0 / period), 7)
+    long_refs = random_walk_refs(round(180.0 / period), 7, GRID)
     best = math.inf
     best_wall = math.inf
     for _ in range(args.repeats):
