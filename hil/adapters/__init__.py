@@ -1,8 +1,11 @@
-"""Adapters: interfaces (typing.Protocol) and backends (sim, log, ros) for the world.
+"""Adapters (layer 6): the world's interfaces (typing.Protocol) and their backends.
 
-Backends are modules of their own (`hil.adapters.sim`, `hil.adapters.log`,
-`hil.adapters.ros`) so that importing the interfaces pulls in neither numba nor
-rclpy.
+:mod:`~hil.adapters.interfaces` declares the pose, IMU, obstacle and thruster
+interfaces and the clock; the backends are :mod:`hil.adapters.sim` (the simulated
+world), :mod:`hil.adapters.log` (a recorded run, read by :mod:`hil.bag.run_data`) and
+:mod:`hil.adapters.ros` (rclpy, imported lazily), modules of their own so that importing
+the interfaces pulls in neither numba nor rclpy. May import bag, sim, controllers,
+model, scenarios and core; the runtime builds on it.
 """
 
 from hil.adapters.frames import ArenaTransform, quaternion_from_yaw, yaw_from_quaternion
