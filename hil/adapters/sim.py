@@ -30,7 +30,17 @@ from hil.model.dynamics import Integrator
 from hil.model.environment import EnvironmentalLoad
 from hil.model.thrusters import VOYAGER_THRUSTERS, ThrusterParams
 from hil.model.vessel import Vessel
-from hil.sim.plant import N_PLANT, N_TRACE, P_ALPHA, P_ETA, TR_ETA, TR_NU, TR_NU_DOT, plant_advance
+from hil.sim.plant import (
+    N_PLANT,
+    N_TRACE,
+    P_ALPHA,
+    P_ETA,
+    P_NU,
+    TR_ETA,
+    TR_NU,
+    TR_NU_DOT,
+    plant_advance,
+)
 from hil.sim.sensors import ImuSensorConfig, PoseSensorConfig, SimulatedImu, SimulatedPoseSensor
 
 FloatArray = NDArray[np.float64]
@@ -77,7 +87,8 @@ class SimConfig:
     """The simulated world.
 
     Attributes:
-        start: Initial pose (x m, y m, psi rad), at rest.
+        start: Initial pose (x m, y m, psi rad).
+        start_velocity: Initial body velocity (u m/s, v m/s, r rad/s); at rest by default.
         seed: Seed of every random stream (sensor noise, dropouts, loads).
         vessel: Hull coefficients.
         thrusters: Thruster geometry, gains and limits.
@@ -93,6 +104,7 @@ class SimConfig:
     """
 
     start: tuple[float, float, float]
+    start_velocity: tuple[float, float, float] = (0.0, 0.0, 0.0)
     seed: int = 0
     vessel: VesselParams = ENTERPRISE_I
     thrusters: ThrusterParams = VOYAGER_THRUSTERS
@@ -109,6 +121,9 @@ class SimConfig:
     def __post_init__(self) -> None:
         if len(self.start) != 3 or not all(math.isfinite(v) for v in self.start):
             raise ValueError(f"start must be a finite (x, y, psi), got {self.start!r}")
+        if len(self.start_velocity) != 3 or not all(math.isfinite(v) for v in self.start_velocity):
+            raise ValueError(
+                f"start_velocity must be a finite (u, v, r), got {self.start_velocity!r}")
         for motion in self.motions:
             if not 0 <= motion.index < len(self.obstacles):
                 raise ValueError(f"obstacle motion names obstacle {motion.index!r}, "
@@ -210,6 +225,7 @@ class SimWorld:
             self._load = np.ascontiguousarray(config.load.series(self._max_steps, config.dt_s))
         self.state = np.zeros(N_PLANT)
         self.state[P_ETA : P_ETA + 3] = config.start
+        self.state[P_NU : P_NU + 3] = config.start_velocity
         self.state[P_ALPHA : P_ALPHA + 2] = (math.pi / 2, -math.pi / 2)
         self.u_set = np.zeros(3)
         self.alpha_set = np.array([math.pi / 2, -math.pi / 2])

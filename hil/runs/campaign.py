@@ -1,8 +1,10 @@
 """Monte Carlo campaigns: many simulated dockings from random starts, in parallel.
 
-Each run is :func:`hil.runs.sim_run.run_in_sim` on a picklable
-:class:`~hil.runs.sim_run.SimRunSpec`, so any executor that maps a function
-over specs (processes here; a cluster later) can run a campaign.
+Each run is :func:`hil.runs.guarantee.judged_run` on a picklable
+:class:`~hil.runs.sim_run.SimRunSpec` (the run, and its guarantee violations on
+the true state), so any executor that maps a function over specs (processes
+here; a cluster later) can run a campaign. A share of the starts may be moving:
+their initial body velocity is drawn uniformly in the scenario's input box.
 """
 
 from __future__ import annotations
@@ -17,8 +19,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hil.controllers.symbolic import Controller
-from hil.runs.sim_run import SimRunSpec, run_in_sim
+from hil.runs.guarantee import GuaranteeViolations, judged_run
+from hil.runs.sim_run import SimRunSpec
 from hil.runs.summary import RunSummary
+from hil.scenarios import Scenario
 
 FloatArray = NDArray[np.float64]
 
@@ -60,20 +64,59 @@ def draw_starts(controller: Controller, n: int, seed: int,
     return starts, discarded
 
 
+Velocity = tuple[float, float, float]
+
+
+def draw_velocities(scenario: Scenario, n: int, moving: float, seed: int) -> list[Velocity | None]:
+    """Draw `n` start velocities: a share `moving` uniform in the input box, the rest at rest.
+
+    The box is the scenario's surge x sway x yaw-rate input ranges (m/s, m/s, rad/s).
+    Which runs move is drawn too (each with probability `moving`). The stream is
+    separate from :func:`draw_starts`' for the same seed, so the starts do not change.
+
+    Raises:
+        ValueError: `moving` is outside [0, 1].
+    """
+    if not 0.0 <= moving <= 1.0:
+        raise ValueError(f"the moving share must lie in [0, 1], got {moving!r}")
+    rng = np.random.default_rng([seed, 1])
+    lo = np.array([scenario.surge.min, scenario.sway.min, scenario.yaw_rate.min])
+    hi = np.array([scenario.surge.max, scenario.sway.max, scenario.yaw_rate.max])
+    out: list[Velocity | None] = []
+    for _ in range(n):
+        is_moving = rng.random() < moving
+        nu = rng.uniform(lo, hi)
+        out.append((float(nu[0]), float(nu[1]), float(nu[2])) if is_moving else None)
+    return out
+
+
 def campaign_specs(base: SimRunSpec, starts: Iterable[tuple[float, float, float]],
-                   seed0: int = 0) -> list[SimRunSpec]:
-    """Return one spec per start, seeds counting up from `seed0`, nothing recorded."""
-    return [replace(base, seed=seed0 + i, start=start, out_dir=None)
-            for i, start in enumerate(starts)]
+                   seed0: int = 0,
+                   velocities: Iterable[Velocity | None] | None = None) -> list[SimRunSpec]:
+    """Return one spec per start, seeds counting up from `seed0`, nothing recorded.
+
+    `velocities` gives each start's initial body velocity (None: at rest); all at
+    rest if omitted.
+    """
+    starts = list(starts)
+    nus = [None] * len(starts) if velocities is None else list(velocities)
+    if len(nus) != len(starts):
+        raise ValueError(f"{len(nus)} velocities for {len(starts)} starts")
+    return [replace(base, seed=seed0 + i, start=start, start_velocity=nu, out_dir=None)
+            for i, (start, nu) in enumerate(zip(starts, nus, strict=True))]
+
+
+CampaignRun = tuple[RunSummary, GuaranteeViolations]
+"""One run of a campaign: its summary and its guarantee violations on the true state."""
 
 
 def run_campaign(specs: list[SimRunSpec], workers: int,
-                 progress: Callable[[RunSummary], None] | None = None) -> list[RunSummary]:
-    """Run every spec, `workers` processes at a time; summaries in spec order."""
-    results: list[RunSummary | None] = [None] * len(specs)
+                 progress: Callable[[CampaignRun], None] | None = None) -> list[CampaignRun]:
+    """Run and judge every spec, `workers` processes at a time; results in spec order."""
+    results: list[CampaignRun | None] = [None] * len(specs)
     if workers <= 1:
         for i, spec in enumerate(specs):
-            results[i] = run_in_sim(spec)
+            results[i] = judged_run(spec)
             if progress is not None:
                 progress(results[i])  # type: ignore[arg-type]
     else:
@@ -81,12 +124,12 @@ def run_campaign(specs: list[SimRunSpec], workers: int,
         # child of a threaded process may crash in the threading layer.
         context = multiprocessing.get_context("spawn")
         with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
-            futures = {pool.submit(run_in_sim, spec): i for i, spec in enumerate(specs)}
+            futures = {pool.submit(judged_run, spec): i for i, spec in enumerate(specs)}
             for future in as_completed(futures):
-                summary = future.result()
-                results[futures[future]] = summary
+                result = future.result()
+                results[futures[future]] = result
                 if progress is not None:
-                    progress(summary)
+                    progress(result)
     return [r for r in results if r is not None]
 
 

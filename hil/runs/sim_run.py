@@ -24,12 +24,14 @@ from numpy.typing import NDArray
 from hil.adapters.sim import ObstacleMotion, SimConfig, SimWorld, ThrusterOutage
 from hil.bag.recorder import Recorder
 from hil.bag.run_info import RunInfo
-from hil.controllers.symbolic import Synthesizer, tables_for
+from hil.controllers.symbolic import Controller, Synthesizer, tables_for
 from hil.controllers.symbolic.grid import Grid
+from hil.core.samples import ObstacleLayout
 from hil.runs.summary import RunSummary, summarize_run
 from hil.runtime.assembly import (
     EkfObserver,
     LayoutSolver,
+    SymbolicAdapter,
     layout_from_scenario,
     low_level_for,
     select_index,
@@ -56,6 +58,8 @@ class SimRunSpec:
         scenario: Packaged scenario name or path to a TOML file.
         seed: Seed of the world's random streams.
         start: Initial pose (x m, y m, psi rad); None takes the scenario's default.
+        start_velocity: Initial body velocity (u m/s, v m/s, r rad/s) of the vessel, which
+            the EKF starts from too; None starts at rest.
         out_dir: Record the run as a bag in this new directory; None keeps it in memory.
         loop: Loop timing and fault thresholds.
         pose_outages_s: Injected pose outages as (start_s, duration_s).
@@ -68,6 +72,7 @@ class SimRunSpec:
     seed: int = 0
     start: tuple[float, float, float] | None = None
     out_dir: Path | None = None
+    start_velocity: tuple[float, float, float] | None = None
     loop: LoopConfig = field(default_factory=LoopConfig)
     pose_outages_s: tuple[tuple[float, float], ...] = ()
     thruster_outages: tuple[ThrusterOutage, ...] = ()
@@ -87,15 +92,62 @@ def scenario_hash(scenario: Scenario) -> str:
     return hashlib.sha256(repr(scenario).encode()).hexdigest()[:16]
 
 
+Select = Callable[[FloatArray, FloatArray], int]
+"""Picks a row of the safe inputs (k, 3) given the previous input (3,)."""
+
+
+class RecordingSolver:
+    """A layout solver that keeps every controller it returned, by synthesis version.
+
+    The resynthesizer numbers its syntheses 1, 2, ... in call order, failures included;
+    this counts the same way. Consecutive versions for the same layout share one
+    controller object, so a re-synthesis timer costs no memory.
+
+    Args:
+        solver: The solver to wrap.
+    """
+
+    def __init__(self, solver: LayoutSolver) -> None:
+        self._solver = solver
+        self._calls = 0
+        self._last: tuple[tuple[object, ...], SymbolicAdapter] | None = None
+        self.controllers: dict[int, Controller] = {}
+
+    def __call__(self, layout: ObstacleLayout) -> SymbolicAdapter:
+        """Solve `layout` and remember the controller under its version."""
+        self._calls += 1
+        if self._last is not None and self._last[0] == layout.obstacles:
+            adapter = self._last[1]
+        else:
+            adapter = self._solver(layout)
+            self._last = (layout.obstacles, adapter)
+        self.controllers[self._calls] = adapter.controller
+        return adapter
+
+
 def build_runtime(
     scenario: Scenario, world: World, log: RunLog, loop: LoopConfig,
-    synthesizer: Synthesizer, mode: ResynthesisMode,
+    synthesizer: Synthesizer, mode: ResynthesisMode, *,
+    select: Select = select_index, start_nu: FloatArray | None = None,
+    solver: Callable[[ObstacleLayout], SymbolicController] | None = None,
 ) -> Runtime:
-    """Compose the full stack for `scenario` against `world`."""
-    solver = LayoutSolver(scenario, synthesizer)
-    resynthesizer: Resynthesizer[SymbolicController] = Resynthesizer(solver, mode)
-    return Runtime(world, EkfObserver(), low_level_for(loop.loop_hz), resynthesizer,
-                   select_index, log, loop, scenario_hash(scenario))
+    """Compose the full stack for `scenario` against `world`.
+
+    Args:
+        scenario: The docking problem.
+        world: Clock and adapters of one backend.
+        log: Where the run is recorded.
+        loop: Loop timing and thresholds.
+        synthesizer: Holds the grid's abstraction tables.
+        mode: Where re-synthesis runs.
+        select: Choice among the safe inputs; the paper's cost J by default.
+        start_nu: Body velocity (3,) the EKF starts from; None at rest.
+        solver: Layout -> controller; a :class:`LayoutSolver` if None.
+    """
+    solve = solver if solver is not None else LayoutSolver(scenario, synthesizer)
+    resynthesizer: Resynthesizer[SymbolicController] = Resynthesizer(solve, mode)
+    return Runtime(world, EkfObserver(start_nu=start_nu), low_level_for(loop.loop_hz),
+                   resynthesizer, select, log, loop, scenario_hash(scenario))
 
 
 def synthesizer_for(scenario: Scenario, cache_dir: Path | None = None) -> Synthesizer:
@@ -109,6 +161,26 @@ LiveView = Callable[[Scenario, RunLog], RunLog]
 """Wraps a run's log to show it live (e.g. a Rerun stream) and passes every call on."""
 
 
+@dataclass(frozen=True, eq=False)
+class SimOutcome:
+    """A finished simulated run with what a judge of its true state needs.
+
+    Attributes:
+        summary: The run's summary.
+        scenario: The scenario it ran.
+        sim: The simulated world (its :meth:`SimWorld.truth` is the true trajectory).
+        stats: What the loop counted.
+        controllers: Every controller the run synthesized, by synthesis version (the
+            ``controller_version`` of its decisions).
+    """
+
+    summary: RunSummary
+    scenario: Scenario
+    sim: SimWorld
+    stats: RunStats
+    controllers: dict[int, Controller]
+
+
 def run_in_sim(
     spec: SimRunSpec, log: RunLog | None = None, live: LiveView | None = None
 ) -> RunSummary:
@@ -120,12 +192,29 @@ def run_in_sim(
         live: Wraps the log for a live view (the views layer provides Rerun's); None
             shows nothing.
     """
+    return simulate(spec, log, live).summary
+
+
+def simulate(
+    spec: SimRunSpec, log: RunLog | None = None, live: LiveView | None = None,
+    select: Select = select_index,
+) -> SimOutcome:
+    """Run one docking in simulation; return its summary, world and controllers.
+
+    Args:
+        spec: The run.
+        log: Where to record when `spec.out_dir` is None (default: a fresh MemoryLog).
+        live: Wraps the log for a live view; None shows nothing.
+        select: Choice among the safe inputs (tests force choices with it).
+    """
     wall_start = time.perf_counter()
     scenario = load_scenario(spec.scenario)
     start = spec.start if spec.start is not None else default_start(scenario)
     layout = layout_from_scenario(scenario)
+    start_nu = (0.0, 0.0, 0.0) if spec.start_velocity is None else spec.start_velocity
     sim = SimWorld(SimConfig(
-        start=start, seed=spec.seed, obstacles=layout.obstacles, motions=spec.motions,
+        start=start, start_velocity=start_nu, seed=spec.seed, obstacles=layout.obstacles,
+        motions=spec.motions,
         pose=PoseSensorConfig(scheduled_dropouts_s=spec.pose_outages_s),
         thruster_outages=spec.thruster_outages,
     ), max_duration_s=spec.loop.max_duration_s + 10.0)
@@ -144,14 +233,18 @@ def run_in_sim(
         log = MemoryLog()
     if live is not None:
         log = live(scenario, log)
+    solver = RecordingSolver(LayoutSolver(scenario, synthesizer))
     try:
-        runtime = build_runtime(scenario, world, log, spec.loop, synthesizer,
-                                ResynthesisMode.INLINE)
+        runtime = build_runtime(
+            scenario, world, log, spec.loop, synthesizer, ResynthesisMode.INLINE,
+            select=select, solver=solver,
+            start_nu=None if spec.start_velocity is None else np.array(spec.start_velocity))
         stats = runtime.run()
     finally:
         if recorder is not None:
             recorder.close()
-    return summarize(spec, scenario, sim, stats, time.perf_counter() - wall_start)
+    summary = summarize(spec, scenario, sim, stats, time.perf_counter() - wall_start)
+    return SimOutcome(summary, scenario, sim, stats, solver.controllers)
 
 
 def summarize(spec: SimRunSpec, scenario: Scenario, sim: SimWorld, stats: RunStats,
@@ -169,11 +262,17 @@ def summarize(spec: SimRunSpec, scenario: Scenario, sim: SimWorld, stats: RunSta
 
 
 def spec_to_json(spec: SimRunSpec) -> dict[str, Any]:
-    """Return the parts of a run specification a suite manifest keeps."""
+    """Return the parts of a run specification a suite manifest keeps.
+
+    A start at rest writes no ``start_velocity``, so specs recorded before it existed
+    read back unchanged.
+    """
+    moving = {} if spec.start_velocity is None else {"start_velocity": list(spec.start_velocity)}
     return {
         "scenario": spec.scenario,
         "seed": spec.seed,
         "start": None if spec.start is None else list(spec.start),
+        **moving,
         "pose_outages_s": [list(p) for p in spec.pose_outages_s],
         "thruster_outages": [[o.start_s, o.stop_s] for o in spec.thruster_outages],
         "motions": [
@@ -197,10 +296,12 @@ def spec_from_json(data: dict[str, Any]) -> SimRunSpec:
     """
     try:
         start = data.get("start")
+        nu = data.get("start_velocity")
         return SimRunSpec(
             scenario=str(data["scenario"]),
             seed=int(data["seed"]),
             start=None if start is None else (float(start[0]), float(start[1]), float(start[2])),
+            start_velocity=None if nu is None else (float(nu[0]), float(nu[1]), float(nu[2])),
             loop=LoopConfig(max_duration_s=float(data.get("max_duration_s", 600.0))),
             pose_outages_s=tuple((float(a), float(b)) for a, b in data.get("pose_outages_s", [])),
             thruster_outages=tuple(

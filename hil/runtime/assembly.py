@@ -30,14 +30,29 @@ _POSE_ACCEPTED = {ObserverStatus.FUSED, ObserverStatus.RESET}
 
 
 class EkfObserver:
-    """The EKF behind the runtime's :class:`~hil.runtime.stack.Observer` protocol."""
+    """The EKF behind the runtime's :class:`~hil.runtime.stack.Observer` protocol.
 
-    def __init__(self, ekf: Ekf | None = None) -> None:
+    Args:
+        ekf: The filter; a default one if None.
+        start_nu: Body velocity (u, v, r), shape (3,), the filter starts with at its
+            first pose (a vessel known to be moving already); None starts at rest, as
+            the filter does by itself.
+    """
+
+    def __init__(self, ekf: Ekf | None = None, start_nu: FloatArray | None = None) -> None:
         self.ekf = ekf or Ekf()
+        self._start_nu = None if start_nu is None else np.asarray(start_nu, dtype=np.float64)
 
     def update_pose(self, sample: PoseSample) -> bool:
         """Fuse a pose; False when the filter refused it."""
-        return self.ekf.process_pose(sample) in _POSE_ACCEPTED
+        starting = not self.ekf.initialized
+        status = self.ekf.process_pose(sample)
+        if starting and self.ekf.initialized and self._start_nu is not None:
+            # Restart at the pose just fused, with the known velocity (counters are kept).
+            first = self.ekf.estimate()
+            self.ekf.initialize(first.t_ns, first.eta, self._start_nu)
+            self._start_nu = None
+        return status in _POSE_ACCEPTED
 
     def update_imu(self, sample: ImuSample) -> bool:
         """Take an IMU sample; False when the filter refused it."""

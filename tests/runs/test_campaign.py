@@ -1,8 +1,15 @@
 import math
 
+import numpy as np
 import pytest
 
-from hil.runs.campaign import CampaignStats, StartRegion, campaign_specs, draw_starts
+from hil.runs.campaign import (
+    CampaignStats,
+    StartRegion,
+    campaign_specs,
+    draw_starts,
+    draw_velocities,
+)
 from hil.runs.sim_run import SimRunSpec, synthesizer_for
 from hil.runs.summary import RunSummary, TrackingError
 from hil.runtime.assembly import LayoutSolver, layout_from_scenario
@@ -78,3 +85,23 @@ def test_stats_aggregate_docked_runs_only_for_times() -> None:
     assert stats.docking_min == pytest.approx((1.5, 1.0, 2.0))
     assert stats.min_clearance_m == 0.0
     assert stats.tracking_rms == pytest.approx((0.01, 0.02, 1.0))
+
+
+def test_moving_starts_are_seeded_in_the_input_box_and_leave_the_starts_alone() -> None:
+    scenario = load_scenario("coarse")
+    velocities = draw_velocities(scenario, 400, 0.5, seed=3)
+    assert velocities == draw_velocities(scenario, 400, 0.5, seed=3)
+    moving = np.array([v for v in velocities if v is not None])
+    assert 150 < len(moving) < 250
+    for axis, grid in enumerate((scenario.surge, scenario.sway, scenario.yaw_rate)):
+        assert grid.min <= moving[:, axis].min() < grid.min + 0.1 * (grid.max - grid.min)
+        assert grid.max - 0.1 * (grid.max - grid.min) < moving[:, axis].max() <= grid.max
+    assert all(v is None for v in draw_velocities(scenario, 50, 0.0, seed=3))
+    assert all(v is not None for v in draw_velocities(scenario, 50, 1.0, seed=3))
+    with pytest.raises(ValueError, match="moving share"):
+        draw_velocities(scenario, 5, 1.5, seed=0)
+    specs = campaign_specs(SimRunSpec(scenario="coarse"), [(3.0, 0.0, 0.0)] * 4,
+                           velocities=velocities[:4])
+    assert [s.start_velocity for s in specs] == velocities[:4]
+    with pytest.raises(ValueError, match="velocities for"):
+        campaign_specs(SimRunSpec(scenario="coarse"), [(3.0, 0.0, 0.0)], velocities=[])

@@ -2,7 +2,8 @@
 
 Imports go one way, as in SCOTS v0.2: grid and problem, abstraction (offset tables,
 cached on disk), sweep (compiled fixed point), synthesis (one call per obstacle layout),
-controller (value function and safe-input lookup), selection (the paper's cost J);
+controller (value function and safe-input lookup), contract (what one decision
+assumed, and judges of poses against it), selection (the paper's cost J);
 reference holds the dense numpy solver used as baseline and second opinion.
 
 Typical use::
@@ -16,6 +17,7 @@ Typical use::
 """
 
 from hil.controllers.symbolic.abstraction import Tables, build_tables, default_cache_dir, tables_for
+from hil.controllers.symbolic.contract import DecisionContract, cells_of
 from hil.controllers.symbolic.controller import Controller, SynthesisStats
 from hil.controllers.symbolic.errors import (
     ControllerFileError,
@@ -32,6 +34,7 @@ from hil.controllers.symbolic.synthesis import Synthesizer, synthesize
 __all__ = [
     "Controller",
     "ControllerFileError",
+    "DecisionContract",
     "EmptyInputSetError",
     "Grid",
     "GridError",
@@ -42,6 +45,7 @@ __all__ = [
     "Synthesizer",
     "Tables",
     "build_tables",
+    "cells_of",
     "cost",
     "default_cache_dir",
     "obstacle_mask",
