@@ -1,9 +1,13 @@
 """`hil replay LOG...`: replay recorded runs through the current code and report regressions.
 
-Each log gets a readable report (decisions, tracking, margin, stack; resim
-with ``--resim``). Exit status: 0 when every log reproduces, 1 on any
-regression, 2 when a log cannot be replayed (missing, truncated beyond use,
-foreign, recorded for another scenario), with a one-line reason per log.
+Arguments may be bags, folders of bags and shell globs (``hil replay logs/*``):
+what is not a bag (README.md, suite.json, a folder without bags) is skipped with
+a one-line note. Each log gets a readable report (decisions, tracking, margin,
+stack; resim with ``--resim``); ``--json``, ``--jsonl`` and ``--junit`` give the
+same machine-readable. Exit status (:data:`EXIT_CODES`): 0 when no log regressed
+(warnings do not count), 1 on any regression, 2 when a log cannot be replayed
+(missing, truncated beyond use, foreign, recorded for another scenario) or no
+bag was given, even if other logs regressed, with a one-line reason per log.
 Logs are only read, never modified.
 """
 
@@ -12,25 +16,48 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TextIO
+
+from hil.commands.replay_progress import ReplayProgress
 
 if TYPE_CHECKING:
     from hil.replay.controllers import ScenarioCache
 
 HELP = "replay recorded runs through the current code; non-zero exit on any regression"
 
+EXIT_CODES = """exit status:
+  0  no regression: every log replayed and none failed (warnings do not count)
+  1  regression: some check failed in some log
+  2  unreadable input: some log could not be replayed (missing, foreign, truncated
+     beyond use, another scenario), or no bag among the arguments; this wins over 1
+     when some logs regress and others are unreadable (both are reported)
+
+Arguments that are not bags (README.md, suite.json, a folder without bags) are
+skipped with a one-line note; a folder holding bags stands for its bags."""
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Declare the command's arguments."""
+    parser.formatter_class = argparse.RawDescriptionHelpFormatter
+    parser.epilog = EXIT_CODES
     parser.add_argument(
         "logs",
         nargs="+",
         type=Path,
         metavar="LOG",
-        help="bag directory or .mcap file (several allowed, e.g. logs/*)",
+        help="bag directory, .mcap/.db3 file or folder of bags (several allowed, e.g. logs/*)",
     )
     parser.add_argument(
         "--json", action="store_true", help="end with a JSON summary of every log on the last line"
+    )
+    parser.add_argument(
+        "--jsonl",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="also write FILE: one JSON line per judged interval between decisions "
+        "(decision, containment, tracking error, verdict), one per log, and the "
+        "overall verdict on the last line ('-' for stdout)",
     )
     parser.add_argument(
         "--junit", type=Path, default=None, metavar="FILE", help="also write JUnit XML for CI"
@@ -40,7 +67,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default="",
         metavar="K=V,...",
         help="thresholds: surge=, sway= (m/s), yaw= (deg/s) tracking RMS "
-        "(enforced when given; default the paper's tank figures, advisory); "
+        "(enforced on the axes given; by default none: the RMS is a figure, shown beside "
+        "the paper's tank figures); "
         "rel= relative tracking difference to the recording (0.05); "
         "surge_max=, sway_max=, yaw_max= largest error; "
         "estimate=, command= re-run differences; position= resim (m); "
@@ -79,24 +107,53 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-# Files a shell glob such as `logs/*` brings along that are not logs: skipped, not errors.
-_NOT_LOGS = {".md", ".json", ".txt", ".toml", ".rrd", ".png"}
+_BAG_SUFFIXES = (".mcap", ".db3")
+_MAGIC = (b"\x89MCAP", b"SQLite format 3\x00")
 
 
-def _expand(paths: list[Path]) -> tuple[list[Path], list[Path]]:
-    """Return (logs to replay, files skipped): a folder of bags stands for its bags."""
+def _holds_splits(folder: Path) -> bool:
+    """Whether `folder` is a bag itself: metadata.yaml or storage files in it."""
+    return (folder / "metadata.yaml").exists() or any(
+        p.suffix.lower() in _BAG_SUFFIXES for p in folder.iterdir() if p.is_file()
+    )
+
+
+def _is_bag_file(path: Path) -> bool:
+    """Whether `path` is a storage file: by its suffix, else by its first bytes."""
+    if path.suffix.lower() in _BAG_SUFFIXES:
+        return True
+    try:
+        with path.open("rb") as f:
+            head = f.read(16)
+    except OSError:
+        return True  # unreadable: let the replay say why, as an error
+    return head.startswith(_MAGIC)
+
+
+def expand(paths: list[Path]) -> tuple[list[Path], list[tuple[Path, str]]]:
+    """Return (logs to replay, (path, why) skipped).
+
+    A bag directory or storage file is a log; a folder holding bags (directly) stands
+    for them; a path that does not exist is kept, so that its replay says so (exit 2).
+    Anything else (a README, a manifest, a folder without bags) is skipped.
+    """
     logs: list[Path] = []
-    skipped: list[Path] = []
+    skipped: list[tuple[Path, str]] = []
     for path in paths:
-        if path.is_file() and path.suffix.lower() in _NOT_LOGS:
-            skipped.append(path)
-        elif path.is_dir() and not (path / "metadata.yaml").exists() and not any(
-            path.glob("*.mcap")
-        ) and not any(path.glob("*.db3")):
-            bags = sorted(d for d in path.iterdir() if (d / "metadata.yaml").is_file())
-            logs.extend(bags or [path])
-        else:
+        if not path.exists():
             logs.append(path)
+        elif path.is_dir():
+            if _holds_splits(path):
+                logs.append(path)
+                continue
+            bags = sorted(d for d in path.iterdir() if d.is_dir() and _holds_splits(d))
+            logs.extend(bags)
+            if not bags:
+                skipped.append((path, "a folder without bags"))
+        elif _is_bag_file(path):
+            logs.append(path)
+        else:
+            skipped.append((path, "not a bag"))
     return logs, skipped
 
 
@@ -105,9 +162,7 @@ def _one_line(err: BaseException) -> str:
     return text[0] if text else type(err).__name__
 
 
-def _write_replay_rrd(
-    log: Path, folder: Path, caches: ScenarioCache, scenario: str | None
-) -> str:
+def _write_replay_rrd(log: Path, folder: Path, caches: ScenarioCache, scenario: str | None) -> str:
     """Write the recording with its replayed decisions to an .rrd; return what happened."""
     from hil.bag.errors import ReplayError
     from hil.bag.run_data import load_run
@@ -127,12 +182,29 @@ def _write_replay_rrd(
     return f"{out} ({stats.bytes / 1e6:.1f} MB)"
 
 
+def _open_jsonl(target: Path) -> TextIO:
+    """Open the --jsonl target ('-' is stdout)."""
+    if str(target) == "-":
+        return sys.stdout
+    target.parent.mkdir(parents=True, exist_ok=True)
+    return target.open("w", encoding="utf-8")
+
+
 def run(args: argparse.Namespace) -> int:
     """Replay every log, print the reports; return 0, 1 (regression) or 2 (bad log)."""
     from hil.adapters.log import LogConfig
     from hil.replay.controllers import ScenarioCache
     from hil.replay.options import ReplayOptions, Tolerance
-    from hil.replay.regression import exit_code, junit_xml, render, summary_json
+    from hil.replay.regression import (
+        LogReport,
+        exit_code,
+        jsonl_lines,
+        junit_xml,
+        render,
+        summary_json,
+        verdict_jsonl,
+        verdict_line,
+    )
     from hil.replay.replayer import replay_log
 
     try:
@@ -147,29 +219,51 @@ def run(args: argparse.Namespace) -> int:
         resim=args.resim,
         scenario=args.scenario,
         log=log_config,
+        intervals=args.jsonl is not None,
     )
-    caches = ScenarioCache()
-    reports = []
-    out = sys.stderr if args.json else sys.stdout
-    logs, skipped = _expand(list(args.logs))
-    for path in skipped:
-        print(f"skipped {path}: not a log", file=out)
-    for path in logs:
+    jsonl: TextIO | None = None
+    if args.jsonl is not None:
         try:
-            report = replay_log(path, options, caches)
-        except Exception as err:  # the last guard: one line, never a traceback
-            from hil.replay.regression import LogReport
+            jsonl = _open_jsonl(args.jsonl)
+        except OSError as err:
+            where = repr(str(args.jsonl))
+            print(f"hil replay: cannot write {where}: {_one_line(err)}", file=sys.stderr)
+            return 2
+    # The reports go to stdout, or to stderr when stdout carries JSON.
+    to_stderr = args.json or (jsonl is sys.stdout)
 
-            report = LogReport(
-                str(path), error=f"internal error: {type(err).__name__}: {_one_line(err)}"
-            )
-        reports.append(report)
-        print(render(report), file=out, flush=True)
-        if args.rerun is not None and not report.error:
-            written = _write_replay_rrd(path, args.rerun, caches, args.scenario)
-            print(f"  rerun: {written}", file=out, flush=True)
-        if report.error:
-            print(f"hil replay: {report.path}: {report.error}", file=sys.stderr)
+    def emit(text: str) -> None:
+        print(text, file=sys.stderr if to_stderr else sys.stdout, flush=True)
+
+    caches = ScenarioCache()
+    reports: list[LogReport] = []
+    logs, skipped = expand(list(args.logs))
+    for path, why in skipped:
+        emit(f"skipped {path}: {why}")
+    if not logs:
+        print(
+            f"hil replay: no bag among {len(args.logs)} argument(s) "
+            f"({', '.join(str(p) for p in args.logs[:3])}{', ...' if len(args.logs) > 3 else ''})",
+            file=sys.stderr,
+        )
+    with ReplayProgress(len(logs)) as progress:
+        for path in logs:
+            try:
+                report = replay_log(path, options, caches, progress.step(path))
+            except Exception as err:  # the last guard: one line, never a traceback
+                report = LogReport(
+                    str(path), error=f"internal error: {type(err).__name__}: {_one_line(err)}"
+                )
+            reports.append(report)
+            progress.done()
+            emit(render(report))
+            if args.rerun is not None and not report.error:
+                emit(f"  rerun: {_write_replay_rrd(path, args.rerun, caches, args.scenario)}")
+            if report.error:
+                print(f"hil replay: {report.path}: {report.error}", file=sys.stderr)
+            if jsonl is not None:
+                jsonl.write("".join(line + "\n" for line in jsonl_lines(report)))
+                jsonl.flush()
     code = exit_code(reports)
     if args.junit is not None:
         try:
@@ -179,8 +273,11 @@ def run(args: argparse.Namespace) -> int:
                 f"hil replay: cannot write {str(args.junit)!r}: {_one_line(err)}", file=sys.stderr
             )
             code = max(code, 2)
-    verdict = {0: "no regression", 1: "REGRESSION", 2: "ERROR: some logs could not be replayed"}
-    print(f"{len(reports)} log(s): {verdict[code]}", file=out)
+    if jsonl is not None:
+        jsonl.write(verdict_jsonl(reports) + "\n")
+        if jsonl is not sys.stdout:
+            jsonl.close()
+    emit(verdict_line(reports))
     if args.json:
         print(summary_json(reports))
     return code

@@ -4,20 +4,36 @@ At every recorded decision, the controller for the recorded obstacle layout is
 synthesized anew (one per distinct layout, cached) and queried at the recorded
 estimated state: cell, winning status, value, safe-input set and the input the
 paper's J picks given the previous recorded choice. Any difference is a regression.
+
+Every field of the recorded decision is also checked against the others and the
+input grid (:func:`consistency`): the chosen index among the safe indices, the
+chosen input its grid row, every safe input the row of its index, winning agreeing
+with the value. So a corrupted or hand-edited decision is a regression even where
+the replay agrees on the index.
+
+Tolerances, both far below what a hand edit or a real change moves:
+
+- input rows are compared within ``ROW_TOLERANCE`` (1e-9 m/s, rad/s): the grid is
+  recomputed from the scenario and recorded as float64, so rows agree to a few ulp
+  (~1e-16) on any machine;
+- a replayed choice that differs from the recorded one but costs the same J within
+  ``COST_TOLERANCE`` (relative 1e-9; J is a sum of ~6 products of O(1) numbers, its
+  rounding ~1e-15) is a tie the other machine broke the other way: accepted and
+  counted (``cost_ties``).
 """
 
 from __future__ import annotations
 
 import math
 import re
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
 from hil.bag.run_data import RunData
-from hil.controllers.symbolic import NoWinningSetError
+from hil.controllers.symbolic import NoWinningSetError, cost
 from hil.core.records import Decision
 from hil.core.samples import ObstacleLayout
 from hil.replay.controllers import ControllerCache
@@ -27,6 +43,10 @@ from hil.runtime.stack import SymbolicController
 
 FloatArray = NDArray[np.float64]
 _READY = re.compile(r"controller v(\d+)\b")
+ROW_TOLERANCE = 1e-9
+"""Largest difference between a recorded input row and the grid's (m/s, rad/s)."""
+COST_TOLERANCE = 1e-9
+"""Relative difference of the cost J under which two inputs tie."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -93,36 +113,156 @@ def _inputs(controller: SymbolicController, indices: tuple[int, ...]) -> list[li
     return [[round(float(v), 6) for v in controller.inputs[i]] for i in indices]
 
 
-def _mismatch(d: Decision, got: Recomputed, controller: SymbolicController) -> Finding | None:
+def _row(values: Sequence[float]) -> list[float]:
+    return [round(float(v), 6) for v in values]
+
+
+def _same_row(a: Sequence[float], b: Sequence[float]) -> bool:
+    return bool(np.all(np.abs(np.asarray(a, dtype=np.float64) - np.asarray(b)) <= ROW_TOLERANCE))
+
+
+def consistency(d: Decision, inputs: FloatArray | None) -> list[tuple[str, str]]:
+    """Check a recorded decision against itself and the input grid; return (field, problem)s.
+
+    The chosen index must be among the safe indices and the chosen input its grid
+    row (zeros and no safe input left unchosen when none is chosen); every safe
+    input must be the grid row of its index; winning must agree with the value,
+    and a state in the target or outside the winning set has no safe input.
+
+    Args:
+        d: The recorded decision.
+        inputs: The controller's input grid (n, 3); None when no controller could be
+            synthesized (only the checks that need no grid are made).
+    """
+    out: list[tuple[str, str]] = []
+    if d.winning != math.isfinite(d.value):
+        out.append(("winning", f"winning: recorded {d.winning} but value {d.value}"))
+    indices = d.safe_input_indices
+    if (d.value == 0.0 or math.isinf(d.value)) and indices:
+        out.append(
+            (
+                "safe_input_indices",
+                f"safe_input_indices: {len(indices)} safe input(s) recorded at value {d.value}, "
+                "where the controller has none",
+            )
+        )
+    seen: set[int] = set()
+    for k, (index, row) in enumerate(zip(indices, d.safe_inputs, strict=True)):
+        if index in seen:
+            out.append(("safe_input_indices", f"safe_input_indices[{k}]: {index} listed twice"))
+        seen.add(index)
+        if inputs is None:
+            continue
+        if not 0 <= index < len(inputs):
+            out.append(
+                (
+                    "safe_input_indices",
+                    f"safe_input_indices[{k}]: {index} outside the input grid of {len(inputs)}",
+                )
+            )
+        elif not _same_row(row, inputs[index]):
+            out.append(
+                (
+                    "safe_inputs",
+                    f"safe_inputs[{k}]: recorded {_row(row)} but input-grid row {index} is "
+                    f"{_row(inputs[index])}",
+                )
+            )
+    chosen = d.chosen_index
+    if chosen == -1:
+        if any(d.chosen_input):
+            out.append(
+                (
+                    "chosen_input",
+                    f"chosen_input: recorded {_row(d.chosen_input)} with no chosen_index (-1)",
+                )
+            )
+        if indices:
+            out.append(
+                ("chosen_index", f"chosen_index: -1 (none) although {len(indices)} safe inputs")
+            )
+        return out
+    if chosen not in seen:
+        out.append(("chosen_index", f"chosen_index: {chosen} is not among the safe_input_indices"))
+    if inputs is not None:
+        if not 0 <= chosen < len(inputs):
+            out.append(
+                ("chosen_index", f"chosen_index: {chosen} outside the input grid of {len(inputs)}")
+            )
+        elif not _same_row(d.chosen_input, inputs[chosen]):
+            out.append(
+                (
+                    "chosen_input",
+                    f"chosen_input: recorded {_row(d.chosen_input)} but chosen_index {chosen} "
+                    f"is input-grid row {_row(inputs[chosen])}",
+                )
+            )
+    elif chosen in seen:
+        row = d.safe_inputs[indices.index(chosen)]
+        if not _same_row(d.chosen_input, row):
+            out.append(
+                (
+                    "chosen_input",
+                    f"chosen_input: recorded {_row(d.chosen_input)} but the safe input of "
+                    f"chosen_index {chosen} is {_row(row)}",
+                )
+            )
+    return out
+
+
+def is_cost_tie(controller: SymbolicController, a: int, b: int, previous: FloatArray) -> bool:
+    """Whether inputs `a` and `b` cost the same J given `previous`, within COST_TOLERANCE."""
+    if a < 0 or b < 0 or max(a, b) >= len(controller.inputs):
+        return False
+    ja, jb = cost(controller.inputs[[a, b]], previous)
+    return bool(abs(ja - jb) <= COST_TOLERANCE * max(1.0, abs(ja), abs(jb)))
+
+
+def _mismatch(
+    d: Decision, got: Recomputed, controller: SymbolicController, previous: FloatArray
+) -> tuple[Finding | None, bool]:
+    """Return the finding for `d` (None when it holds) and whether a cost tie was accepted."""
     recorded_safe = tuple(sorted(d.safe_input_indices))
+    same_set = recorded_safe == got.safe
+    tie = (
+        d.chosen_index != got.chosen
+        and same_set
+        and d.chosen_index in got.safe
+        and is_cost_tie(controller, d.chosen_index, got.chosen, previous)
+    )
     fields = [
         name
         for name, same in (
             ("cell", d.cell == got.cell),
             ("winning", d.winning == got.winning),
             ("value", d.value == got.value),
-            ("safe set", recorded_safe == got.safe),
-            ("chosen input", d.chosen_index == got.chosen),
+            ("safe_input_indices", same_set),
+            ("chosen_index", d.chosen_index == got.chosen or tie),
         )
         if not same
     ]
-    if not fields:
-        return None
+    inconsistent = consistency(d, controller.inputs)
+    if not fields and not inconsistent:
+        return None, tie
     only_rec = sorted(set(recorded_safe) - set(got.safe))
     only_new = sorted(set(got.safe) - set(recorded_safe))
     state = [round(v, 4) for v in d.state]
-    message = (
-        f"{', '.join(fields)} differ at state {state}: recorded chosen {d.chosen_index} "
-        f"{list(d.chosen_input)} value {d.value}, replayed chosen {got.chosen}"
-        f"{_inputs(controller, (got.chosen,)) if got.chosen >= 0 else ''} value {got.value}; "
-        f"safe set recorded {len(recorded_safe)}, replayed {len(got.safe)} "
-        f"(only recorded {only_rec[:8]}, only replayed {only_new[:8]})"
-    )
-    return Finding(
-        message,
+    parts = [text for _, text in inconsistent]
+    if fields:
+        parts.append(
+            f"{', '.join(fields)} differ from the replay at state {state}: recorded chosen "
+            f"{d.chosen_index} {_row(d.chosen_input)} value {d.value}, replayed chosen "
+            f"{got.chosen}{_inputs(controller, (got.chosen,)) if got.chosen >= 0 else ''} "
+            f"value {got.value}; safe set recorded {len(recorded_safe)}, replayed "
+            f"{len(got.safe)} (only recorded {only_rec[:8]}, only replayed {only_new[:8]})"
+        )
+    finding = Finding(
+        "; ".join(parts),
         d.t_ns,
         {
-            "fields": fields,
+            "fields": sorted({*fields, *(name for name, _ in inconsistent)}),
+            "differ": fields,
+            "inconsistent": [text for _, text in inconsistent],
             "state": list(d.state),
             "recorded": {
                 "cell": d.cell,
@@ -142,27 +282,45 @@ def _mismatch(d: Decision, got: Recomputed, controller: SymbolicController) -> F
             },
         },
     )
+    return finding, tie
 
 
 def _recomputed(
     run: RunData, controllers: ControllerCache
-) -> Iterator[tuple[Decision, Recomputed | str, SymbolicAdapter | None]]:
-    """Yield each recorded decision with its recomputation (or why there is none)."""
-    ready = _version_times(run)
+) -> Iterator[tuple[Decision, Recomputed | str, SymbolicAdapter | None, FloatArray]]:
+    """Yield each recorded decision with its recomputation (or why there is none).
+
+    The last item is the previous recorded choice the cost J was evaluated against.
+    """
     previous = np.zeros(3)
+    for d, controller in decision_controllers(run, controllers):
+        if isinstance(controller, str):
+            yield d, controller, None, previous
+            continue
+        yield d, recompute(controller, np.array(d.state), previous), controller, previous
+        if d.chosen_index >= 0:
+            previous = np.array(d.chosen_input)
+
+
+def decision_controllers(
+    run: RunData, controllers: ControllerCache
+) -> Iterator[tuple[Decision, SymbolicAdapter | str]]:
+    """Yield each recorded decision with the controller of its recorded layout.
+
+    The controller is the current code's synthesis for the layout in force when the
+    decision's controller version was swapped in; instead of it, one line saying why
+    there is none (no layout recorded, no winning set now).
+    """
+    ready = _version_times(run)
     for d in run.decisions:
         layout = layout_at(run, ready.get(d.controller_version, d.t_ns))
         if layout is None:
-            yield d, "no obstacle layout recorded before this decision", None
+            yield d, "no obstacle layout recorded before this decision"
             continue
         try:
-            controller = controllers(layout)
+            yield d, controllers(layout)
         except NoWinningSetError as err:
-            yield d, f"recorded a decision, but now: {err}", None
-            continue
-        yield d, recompute(controller, np.array(d.state), previous), controller
-        if d.chosen_index >= 0:
-            previous = np.array(d.chosen_input)
+            yield d, f"recorded a decision, but now: {err}"
 
 
 def replayed_decisions(run: RunData, controllers: ControllerCache) -> list[Decision]:
@@ -172,7 +330,7 @@ def replayed_decisions(run: RunData, controllers: ControllerCache) -> list[Decis
     with no safe input and no choice, so it shows as different.
     """
     out = []
-    for d, got, controller in _recomputed(run, controllers):
+    for d, got, controller, _ in _recomputed(run, controllers):
         if isinstance(got, str) or controller is None:
             out.append(
                 Decision.from_arrays(
@@ -209,31 +367,52 @@ def replayed_decisions(run: RunData, controllers: ControllerCache) -> list[Decis
 
 
 def check_decisions(run: RunData, controllers: ControllerCache) -> Check:
-    """Recompute every recorded decision at its recorded state (see module docstring)."""
+    """Check every field of every recorded decision (see module docstring)."""
     if not run.decisions:
         return Check("decisions", Status.SKIP, "the log holds no decisions")
     findings: list[Finding] = []
+    ties: list[int] = []
     before = controllers.syntheses
-    for d, got, controller in _recomputed(run, controllers):
+    for d, got, controller, previous in _recomputed(run, controllers):
         if isinstance(got, str) or controller is None:
-            findings.append(Finding(str(got), d.t_ns))
+            extra = [text for _, text in consistency(d, None)]
+            findings.append(Finding("; ".join([str(got), *extra]), d.t_ns))
             continue
-        found = _mismatch(d, got, controller)
+        found, tie = _mismatch(d, got, controller, previous)
         if found is not None:
             findings.append(found)
+        if tie:
+            ties.append(d.t_ns)
     n = len(run.decisions)
     synth = controllers.syntheses - before
-    metrics = {"decisions": n, "mismatches": len(findings), "syntheses": synth}
+    metrics = {
+        "decisions": n,
+        "mismatches": len(findings),
+        "syntheses": synth,
+        "cost_ties": len(ties),
+        "cost_tie_times_ns": ties,
+    }
+    tie_note = (
+        f"; {len(ties)} chose another input of equal cost J (tie within "
+        f"{COST_TOLERANCE:g}, accepted), first at {time_s(ties[0])}"
+        if ties
+        else ""
+    )
     if findings:
         return Check(
             "decisions",
             Status.FAIL,
-            f"{len(findings)} of {n} decisions differ, first at {time_s(findings[0].t_ns)}",
+            f"{len(findings)} of {n} decisions differ or are inconsistent, first at "
+            f"{time_s(findings[0].t_ns)}{tie_note}",
             tuple(findings),
             metrics,
         )
     return Check(
-        "decisions", Status.PASS, f"{n} decisions reproduced ({synth} new syntheses)", (), metrics
+        "decisions",
+        Status.PASS,
+        f"{n} decisions reproduced, every field consistent ({synth} new syntheses){tie_note}",
+        (),
+        metrics,
     )
 
 

@@ -13,7 +13,6 @@ from typing import Any
 
 from hil.adapters.log import LogConfig
 from hil.core.tracking import AXES
-from hil.runs.summary import PAPER_TRACKING_ERROR
 
 _AXES = AXES
 
@@ -23,10 +22,9 @@ class Tolerance:
     """Thresholds of the checks.
 
     Attributes:
-        rms: Tracking-error RMS thresholds (surge m/s, sway m/s, yaw deg/s);
-            default the paper's tank figures.
-        enforce_rms: Whether exceeding `rms` fails (True when set explicitly)
-            or only warns.
+        rms: Tracking-error RMS thresholds (surge m/s, sway m/s, yaw deg/s), enforced
+            (FAIL above); inf on an axis sets none, the default: the RMS is then a
+            figure, reported beside the paper's tank figures.
         max_abs: Thresholds on the largest |error| per axis (same units); None
             checks none (inf on an axis skips it). Always enforced.
         relative: Allowed relative difference of tracking RMS and max between a
@@ -40,8 +38,7 @@ class Tolerance:
             covered by the margin, which is measured after settling.
     """
 
-    rms: tuple[float, float, float] = PAPER_TRACKING_ERROR
-    enforce_rms: bool = False
+    rms: tuple[float, float, float] = (math.inf, math.inf, math.inf)
     max_abs: tuple[float, float, float] | None = None
     relative: float = 0.05
     estimate: float = 1e-6
@@ -49,19 +46,24 @@ class Tolerance:
     resim_position_m: float = 0.05
     settle_s: float = 1.0
 
+    @property
+    def enforce_rms(self) -> bool:
+        """Whether an RMS threshold is set on any axis."""
+        return any(math.isfinite(v) for v in self.rms)
+
     @staticmethod
     def parse(text: str) -> Tolerance:
         """Parse ``key=value`` pairs, comma separated.
 
         Keys: ``surge``, ``sway`` (m/s), ``yaw`` (deg/s) set enforced RMS
-        thresholds; ``surge_max``, ``sway_max``, ``yaw_max`` thresholds on the
+        thresholds (on that axis only); ``surge_max``, ``sway_max``, ``yaw_max`` thresholds on the
         largest error; ``rel``, ``estimate``, ``command``, ``position`` and
         ``settle`` the fields of the same meaning.
 
         Raises:
             ValueError: An unknown key or a value that is not a number >= 0.
         """
-        rms = list(PAPER_TRACKING_ERROR)
+        rms = [math.inf] * 3
         peak = [math.inf] * 3
         values: dict[str, Any] = {}
         keys = {
@@ -82,7 +84,6 @@ class Tolerance:
                 raise ValueError(f"tolerance {part!r} is not KEY=NUMBER with a number >= 0")
             if key in _AXES:
                 rms[_AXES.index(key)] = value
-                values["enforce_rms"] = True
             elif key.endswith("_max") and key[:-4] in _AXES:
                 peak[_AXES.index(key[:-4])] = value
                 values["max_abs"] = (peak[0], peak[1], peak[2])
@@ -107,6 +108,8 @@ class ReplayOptions:
         scenario: Replay with this scenario instead of the one the log names.
         log: Delivery delays of the recorded samples.
         cache_dir: Abstraction-table cache (None: the default).
+        intervals: Also judge every interval between decisions
+            (:mod:`hil.replay.intervals`; ``--jsonl``).
     """
 
     tolerance: Tolerance = field(default_factory=Tolerance)
@@ -115,3 +118,4 @@ class ReplayOptions:
     scenario: str | None = None
     log: LogConfig = field(default_factory=LogConfig)
     cache_dir: Path | None = None
+    intervals: bool = False

@@ -2,9 +2,12 @@
 
 A replay of one log produces a :class:`LogReport`: a list of :class:`Check` s
 (decisions, tracking, margin, stack, resim), each with a :class:`Status` and
-the :class:`Finding` s behind it (time, what differs, both sides). A FAIL in any
-check is a regression; WARN is reported but does not fail; ERROR means the log
-could not be replayed at all (missing, foreign, another scenario).
+the :class:`Finding` s behind it (time, what differs, both sides), and the
+:class:`Interval` s between its decisions, judged one by one. A FAIL in any check
+is a regression; WARN is something to act on that does not fail (the guarantee's
+assumption broken); figures kept for comparison (the paper's tank tracking
+error) are no warning. ERROR means the log could not be replayed at all (missing,
+foreign, another scenario).
 """
 
 from __future__ import annotations
@@ -100,6 +103,66 @@ class Check:
 
 
 @dataclass(frozen=True)
+class Interval:
+    """One judged interval: from a recorded decision to the next (or the end of the run).
+
+    Attributes:
+        t_ns: Decision time, the interval's start (ns).
+        end_ns: The next decision's time or the run's last stamp (ns).
+        state: Estimated state (x m, y m, psi rad) the decision was taken at.
+        chosen_index: Input-grid index of the chosen input, -1 for none.
+        chosen_input: The chosen (u m/s, v m/s, r rad/s).
+        successor_contained: Whether the estimated state one sampling time tau
+            after the decision lies in the abstraction's successor cells of the
+            decision cell under the chosen input; None when not judged (no input
+            chosen, no controller, the run ended before tau).
+        tube_contained: Whether every estimated position within tau of the decision
+            lies in the swept tube's cells; None when not judged.
+        tracking_rms: Tracking-error RMS over the interval (surge m/s, sway m/s,
+            yaw deg/s); None without samples.
+        tracking_max: Largest |tracking error| over the interval (same units).
+        margin_exceeded: Axes on which the error left the synthesized margin after
+            settling, in the interval.
+        status: PASS, WARN (margin left, or a successor/tube not contained) or FAIL
+            (a check failed at a time in the interval).
+        notes: Why the interval is not PASS, one short line each.
+    """
+
+    t_ns: int
+    end_ns: int
+    state: tuple[float, float, float]
+    chosen_index: int
+    chosen_input: tuple[float, float, float]
+    successor_contained: bool | None = None
+    tube_contained: bool | None = None
+    tracking_rms: tuple[float, float, float] | None = None
+    tracking_max: tuple[float, float, float] | None = None
+    margin_exceeded: tuple[str, ...] = ()
+    status: Status = Status.PASS
+    notes: tuple[str, ...] = ()
+
+    def to_dict(self) -> dict[str, Any]:
+        """Return a JSON-ready dictionary (times in ns and s)."""
+        return _clean(  # type: ignore[no-any-return]
+            {
+                "t_ns": self.t_ns,
+                "t_s": self.t_ns / NS_PER_S,
+                "end_ns": self.end_ns,
+                "state": self.state,
+                "chosen_index": self.chosen_index,
+                "chosen_input": self.chosen_input,
+                "successor_contained": self.successor_contained,
+                "tube_contained": self.tube_contained,
+                "tracking_rms": self.tracking_rms,
+                "tracking_max": self.tracking_max,
+                "margin_exceeded": list(self.margin_exceeded),
+                "verdict": self.status.value,
+                "notes": list(self.notes),
+            }
+        )
+
+
+@dataclass(frozen=True)
 class LogReport:
     """The replay of one log.
 
@@ -109,6 +172,8 @@ class LogReport:
         warnings: What was skipped or odd while reading the log.
         error: Why the log could not be replayed ("" when it could).
         wall_s: Wall time of the replay (s).
+        intervals: The intervals between decisions, judged one by one (empty when
+            not asked for or when the log holds no decisions).
     """
 
     path: str
@@ -116,13 +181,20 @@ class LogReport:
     warnings: tuple[str, ...] = ()
     error: str = ""
     wall_s: float = 0.0
+    intervals: tuple[Interval, ...] = ()
 
     @property
     def status(self) -> Status:
-        """ERROR when it could not be replayed, else the worst check."""
+        """ERROR when it could not be replayed, else the worst judged check.
+
+        A check not judged (SKIP) does not make the log SKIP unless none was judged.
+        """
         if self.error:
             return Status.ERROR
-        return Status.worst([c.status for c in self.checks])
+        judged = [c.status for c in self.checks if c.status is not Status.SKIP]
+        if not judged and self.checks:
+            return Status.SKIP
+        return Status.worst(judged)
 
     @property
     def regressions(self) -> tuple[Finding, ...]:
@@ -153,7 +225,14 @@ class LogReport:
 
 
 def exit_code(reports: Sequence[LogReport]) -> int:
-    """Return 0 when nothing failed, 1 on any regression, 2 when a log could not be replayed."""
+    """Return the exit status of a replay.
+
+    0: every log replayed and none regressed (warnings do not count); 1: a log
+    regressed; 2: a log could not be read or replayed, whatever the others did
+    (their regressions are still in the reports), or there was no log at all.
+    """
+    if not reports:
+        return 2
     statuses = [r.status for r in reports]
     if Status.ERROR in statuses:
         return 2
@@ -196,6 +275,19 @@ def render(report: LogReport, max_findings: int = 5) -> str:
     return "\n".join(lines)
 
 
+def verdict_line(reports: Sequence[LogReport]) -> str:
+    """Return the last line of a replay: how many logs, the verdict, the warnings."""
+    code = exit_code(reports)
+    warned = sum(r.status is Status.WARN for r in reports)
+    verdict = {
+        0: "no regression",
+        1: "REGRESSION",
+        2: "ERROR: some logs could not be replayed" if reports else "ERROR: no log to replay",
+    }[code]
+    note = f" ({warned} with warnings to look at)" if warned else ""
+    return f"{len(reports)} log(s): {verdict}{note}"
+
+
 def summary_json(reports: Sequence[LogReport]) -> str:
     """Return every report and the totals as one line of JSON."""
     statuses = [r.status for r in reports]
@@ -206,7 +298,47 @@ def summary_json(reports: Sequence[LogReport]) -> str:
         "passed": sum(s in (Status.PASS, Status.WARN, Status.SKIP) for s in statuses),
         "failed": statuses.count(Status.FAIL),
         "errors": statuses.count(Status.ERROR),
+        "warned": statuses.count(Status.WARN),
         "reports": [r.to_dict() for r in reports],
+    }
+    return json.dumps(data, sort_keys=True)
+
+
+def jsonl_lines(report: LogReport) -> list[str]:
+    """Return the JSON lines of one log: one per judged interval, then the log's own line.
+
+    Each interval line has ``"type": "interval"`` and the fields of
+    :meth:`Interval.to_dict`; the log line (``"type": "log"``) the log's verdict,
+    error and the status of every check.
+    """
+    lines = [
+        json.dumps({"type": "interval", "log": report.path, **i.to_dict()}, sort_keys=True)
+        for i in report.intervals
+    ]
+    log = {
+        "type": "log",
+        "log": report.path,
+        "verdict": report.status.value,
+        "error": report.error,
+        "intervals": len(report.intervals),
+        "checks": {c.name: c.status.value for c in report.checks},
+        "wall_s": round(report.wall_s, 3),
+    }
+    lines.append(json.dumps(log, sort_keys=True))
+    return lines
+
+
+def verdict_jsonl(reports: Sequence[LogReport]) -> str:
+    """Return the last JSON line of a replay: the overall verdict and its exit status."""
+    statuses = [r.status for r in reports]
+    data = {
+        "type": "verdict",
+        "verdict": Status.worst(statuses).value if reports else Status.ERROR.value,
+        "exit_code": exit_code(reports),
+        "logs": len(reports),
+        "failed": statuses.count(Status.FAIL),
+        "errors": statuses.count(Status.ERROR),
+        "warned": statuses.count(Status.WARN),
     }
     return json.dumps(data, sort_keys=True)
 

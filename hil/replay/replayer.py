@@ -8,14 +8,19 @@ Open loop (default), four checks, each in its own module:
   status, value, safe-input set and the input the paper's J picks given the
   previous recorded choice. Any difference is a regression.
 - ``tracking``: velocity-tracking error per axis (RMS, max) of the recorded
-  estimates (odometry) against the recorded references, against thresholds
-  (default the paper's tank figures, advisory unless ``--tolerance`` sets them).
+  estimates (odometry) against the recorded references: figures beside the
+  paper's tank figures, FAIL only above thresholds ``--tolerance`` sets.
 - ``margin``: the guarantee's assumption, that the tracking error stayed within
   the margin the controller was synthesized for; says where it did not (WARN).
 - ``stack``: the full stack (observer, decisions, PID, allocation) re-run by
   :class:`hil.runtime.loop.Runtime` on the recorded sensor and obstacle streams
   through the ``log`` adapters; its estimates, decisions, references, thruster
-  commands and tracking error must reproduce the recording.
+  commands and tracking error must reproduce the recording (not judged, SKIP,
+  for a run over ROS, whose per-tick sample arrival is not recorded).
+
+With ``ReplayOptions.intervals`` every interval between decisions is also judged
+(:mod:`hil.replay.intervals`): containment in the abstraction's successor cells and
+swept tube, tracking error, verdict.
 
 Closed loop (``resim``): the recorded scenario, seed and start (from the suite
 manifest beside the log when there is one, else the first recorded pose) are
@@ -26,6 +31,7 @@ tracking error compared with the recording.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from hil.bag.errors import ReplayError
@@ -33,8 +39,9 @@ from hil.bag.run_data import load_run
 from hil.controllers.symbolic import SymbolicError
 from hil.replay.controllers import ScenarioCache, resolve_scenario
 from hil.replay.decisions import check_decisions
+from hil.replay.intervals import judge_intervals
 from hil.replay.options import ReplayOptions
-from hil.replay.regression import LogReport
+from hil.replay.regression import Interval, LogReport
 from hil.replay.resim import check_resim
 from hil.replay.stack import check_stack
 from hil.replay.tracking_checks import check_margin, check_tracking
@@ -42,7 +49,10 @@ from hil.scenarios import ScenarioError
 
 
 def replay_log(
-    path: str | Path, options: ReplayOptions | None = None, caches: ScenarioCache | None = None
+    path: str | Path,
+    options: ReplayOptions | None = None,
+    caches: ScenarioCache | None = None,
+    progress: Callable[[str], None] | None = None,
 ) -> LogReport:
     """Replay one log and return its report; never raises for a bad or foreign log.
 
@@ -50,24 +60,40 @@ def replay_log(
         path: Bag directory or ``.mcap`` file; never modified.
         options: What to check and with which thresholds.
         caches: Controllers shared with other logs of the same replay.
+        progress: Called with the name of each step as it starts ("load",
+            "decisions", ...), for a progress display.
     """
     options = options or ReplayOptions()
     caches = caches or ScenarioCache(options.cache_dir)
+    step = progress or (lambda _name: None)
     wall = time.perf_counter()
+    intervals: tuple[Interval, ...] = ()
     try:
+        step("load")
         run = load_run(path)
         scenario = resolve_scenario(run, options.scenario)
         controllers = caches.get(scenario)
-        checks = [
-            check_decisions(run, controllers),
+        step("decisions")
+        checks = [check_decisions(run, controllers)]
+        step("tracking")
+        checks += [
             check_tracking(run, options.tolerance),
             check_margin(run, scenario, options.tolerance.settle_s),
         ]
         if options.stack:
+            step("stack")
             checks.append(check_stack(run, controllers, options))
         if options.resim:
+            step("resim")
             checks.append(check_resim(run, options.tolerance))
+        if options.intervals:
+            step("intervals")
+            intervals = judge_intervals(
+                run, controllers, scenario, checks, options.tolerance.settle_s
+            )
     except (ReplayError, SymbolicError, ScenarioError, ValueError, OSError) as err:
         message = str(err).splitlines()[0] if str(err) else type(err).__name__
         return LogReport(str(path), error=message, wall_s=time.perf_counter() - wall)
-    return LogReport(str(path), tuple(checks), run.warnings, "", time.perf_counter() - wall)
+    return LogReport(
+        str(path), tuple(checks), run.warnings, "", time.perf_counter() - wall, intervals
+    )

@@ -1,10 +1,13 @@
 """The tracking and margin checks, on the one tracking error of :mod:`hil.core.tracking`.
 
 - ``tracking``: velocity-tracking error per axis (RMS, max) of the recorded
-  estimates (odometry) against the recorded references, against thresholds
-  (default the paper's tank figures, advisory unless ``--tolerance`` sets them).
+  estimates (odometry) against the recorded references. Judged only against the
+  thresholds ``--tolerance`` sets (FAIL above them); otherwise the figures are
+  reported beside the paper's tank figures, for comparison, and the check passes:
+  the tank figures are no regression threshold (another vessel, another water).
 - ``margin``: the guarantee's assumption, that the tracking error stayed within
-  the margin the controller was synthesized for; says where it did not (WARN).
+  the margin the controller was synthesized for; says where it did not (WARN: the
+  guarantee does not cover those spans, something to act on).
 
 Errors are computed in SI and shown (messages, metrics) with yaw in deg/s.
 """
@@ -21,6 +24,7 @@ from hil.bag.run_data import RunData
 from hil.core.tracking import AXES, DISPLAY_UNITS, TrackingSeries, for_display
 from hil.replay.options import Tolerance
 from hil.replay.regression import Check, Finding, Status, time_s
+from hil.runs.summary import PAPER_TRACKING_ERROR
 from hil.scenarios import Scenario
 
 FloatArray = NDArray[np.float64]
@@ -45,7 +49,11 @@ def _axes_text(values: FloatArray) -> str:
 
 
 def check_tracking(run: RunData, tolerance: Tolerance) -> Check:
-    """Compare the recorded tracking error's RMS per axis with the thresholds."""
+    """Report the recorded tracking error per axis; FAIL only above thresholds set explicitly.
+
+    Without ``--tolerance`` thresholds the RMS and largest error are figures, shown
+    beside the paper's tank RMS (``paper_rms`` in the metrics), and the check passes.
+    """
     series = run.tracking_error()
     if not len(series.t_ns):
         return Check("tracking", Status.SKIP, "no velocity references with estimates")
@@ -78,19 +86,30 @@ def check_tracking(run: RunData, tolerance: Tolerance) -> Check:
         )
         for k in over_peak
     ]
-    source = "" if tolerance.enforce_rms else " (the paper's tank figures, advisory)"
+    paper = ", ".join(f"{v:g}" for v in PAPER_TRACKING_ERROR)
     text = f"RMS {_axes_text(rms)}; max {_axes_text(peak)}"
     metrics = {
         **_metrics(series),
-        "threshold_rms": list(tolerance.rms),
+        "paper_rms": list(PAPER_TRACKING_ERROR),
+        "threshold_rms": [float(v) for v in limit],  # inf (JSON null): none set
         "threshold_max_abs": [float(v) for v in peak_limit],
     }
     if not findings:
-        return Check("tracking", Status.PASS, f"{text}; within thresholds{source}", (), metrics)
-    status = Status.FAIL if tolerance.enforce_rms or over_peak else Status.WARN
+        judged = (
+            "within thresholds"
+            if tolerance.enforce_rms or tolerance.max_abs is not None
+            else "no threshold set"
+        )
+        return Check(
+            "tracking",
+            Status.PASS,
+            f"{text}; {judged} (the paper's tank RMS, for comparison: {paper})",
+            (),
+            metrics,
+        )
     axes = ", ".join(sorted({_AXES[k] for k in [*over, *over_peak]}, key=_AXES.index))
     return Check(
-        "tracking", status, f"{text}; above threshold{source} in {axes}", tuple(findings), metrics
+        "tracking", Status.FAIL, f"{text}; above threshold in {axes}", tuple(findings), metrics
     )
 
 

@@ -8,17 +8,20 @@ import hashlib
 import json
 import re
 import shutil
+from collections.abc import Callable
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
 import pytest
 
+from hil.bag.messages import Record
 from hil.bag.reader import BagReader
 from hil.bag.recorder import RecorderConfig
 from hil.bag.run_info import RunInfo
 from hil.commands import replay
 from hil.commands.record_suite import write_bag
-from hil.core.records import Decision
+from hil.core.records import Decision, StateEstimate
+from hil.core.samples import VelocityReference
 
 ROOT = Path(__file__).resolve().parents[2]
 LOG = ROOT / "logs" / "coarse-high-seed2"
@@ -73,9 +76,14 @@ def test_tampered_log_exits_1_and_names_the_time(
     out = capsys.readouterr().out
     # The tampered choice is also the next decision's previous input (the cost J smooths
     # against it), so that one may differ too; the first difference is the tampered one.
-    assert re.search(r"\[ FAIL\] decisions: [12] of \d+ decisions differ, first at t="
-                     + f"{decision.t_ns / 1e9:.3f} s", out)
-    assert f"t={decision.t_ns / 1e9:.3f} s: chosen input differ" in out
+    assert re.search(
+        r"\[ FAIL\] decisions: [12] of \d+ decisions differ or are inconsistent, first at t="
+        + f"{decision.t_ns / 1e9:.3f} s",
+        out,
+    )
+    at = f"t={decision.t_ns / 1e9:.3f} s"
+    assert f"{at}: chosen_index: -1 (none) although {len(decision.safe_inputs)} safe inputs" in out
+    assert "chosen_index differ from the replay" in out
     assert "REGRESSION" in out
 
 
@@ -158,9 +166,205 @@ def test_shell_glob_over_logs_replays_the_bags_and_skips_the_rest(
     entries = sorted((ROOT / "logs").iterdir())
     assert run_replay(*(str(p) for p in entries), "--no-stack") == 0
     out = capsys.readouterr().out
-    assert f"skipped {ROOT / 'logs' / 'suite.json'}: not a log" in out
+    assert f"skipped {ROOT / 'logs' / 'suite.json'}: not a bag" in out
+    assert f"skipped {ROOT / 'logs' / 'README.md'}: not a bag" in out
     bags = [p for p in entries if (p / "metadata.yaml").is_file()]
-    assert out.strip().splitlines()[-1] == f"{len(bags)} log(s): no regression"
+    assert out.strip().splitlines()[-1].startswith(f"{len(bags)} log(s): no regression")
     # The folder itself stands for the bags in it.
     assert run_replay(str(ROOT / "logs"), "--no-stack") == 0
-    assert capsys.readouterr().out.strip().splitlines()[-1] == f"{len(bags)} log(s): no regression"
+    last = capsys.readouterr().out.strip().splitlines()[-1]
+    assert last.startswith(f"{len(bags)} log(s): no regression")
+
+
+def _records() -> tuple[RunInfo, list[Record]]:
+    with BagReader(LOG) as reader:
+        info = RunInfo.from_custom_data(reader.info.custom)
+        records: list[Record] = [r for _, _, r in reader.records()]
+    assert info is not None
+    return info, records
+
+
+def _write(path: Path, info: RunInfo, records: list[Record]) -> Path:
+    write_bag(path, info, records, RecorderConfig(split_s=1e9, flush_s=1e9, threaded=False))
+    return path
+
+
+def _tamper(path: Path, edit: Callable[[Decision], Decision]) -> tuple[Path, Decision]:
+    """Write a copy of LOG with one decision (>= 3 safe inputs, after 10 s) edited."""
+    info, records = _records()
+    index, decision = next(
+        (i, r)
+        for i, r in enumerate(records)
+        if isinstance(r, Decision) and len(r.safe_input_indices) >= 3 and r.t_ns > 10**10
+    )
+    records[index] = edit(decision)
+    return _write(path, info, records), decision
+
+
+def _other(d: Decision) -> int:
+    """Position in the safe set of a safe input that is not the chosen one."""
+    return next(k for k, i in enumerate(d.safe_input_indices) if i != d.chosen_index)
+
+
+def _shifted(row: tuple[float, float, float]) -> tuple[float, float, float]:
+    return (row[0] + 0.05, row[1], row[2])
+
+
+TAMPERINGS: dict[str, tuple[Callable[[Decision], Decision], str]] = {
+    # chosen_input changed to another safe input, the index kept
+    "chosen input": (
+        lambda d: dataclasses.replace(d, chosen_input=d.safe_inputs[_other(d)]),
+        "chosen_input: recorded",
+    ),
+    # one safe input row edited, its index kept
+    "safe input row": (
+        lambda d: dataclasses.replace(
+            d,
+            safe_inputs=tuple(
+                _shifted(row) if k == _other(d) else row for k, row in enumerate(d.safe_inputs)
+            ),
+        ),
+        "safe_inputs[{k}]: recorded",
+    ),
+    # a safe input left out, consistently (index and row): only the replay can tell
+    "safe set": (
+        lambda d: dataclasses.replace(
+            d,
+            safe_inputs=tuple(r for k, r in enumerate(d.safe_inputs) if k != _other(d)),
+            safe_input_indices=tuple(
+                i for k, i in enumerate(d.safe_input_indices) if k != _other(d)
+            ),
+        ),
+        "safe_input_indices differ from the replay",
+    ),
+    "winning": (lambda d: dataclasses.replace(d, winning=False), "winning: recorded False"),
+    "value": (lambda d: dataclasses.replace(d, value=d.value + 1), "value differ from the replay"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(TAMPERINGS))
+def test_hand_edited_decision_is_a_regression_naming_time_and_field(
+    case: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    edit, expected = TAMPERINGS[case]
+    copy, decision = _tamper(tmp_path / "tampered", edit)
+    assert run_replay(str(copy), "--no-stack") == 1
+    out = capsys.readouterr().out
+    at = f"t={decision.t_ns / 1e9:.3f} s"
+    assert f"decisions differ or are inconsistent, first at {at}" in out
+    assert f"{at}: {expected.format(k=_other(decision))}" in out
+    assert out.strip().splitlines()[-1] == "1 log(s): REGRESSION"
+
+
+def test_log_with_nothing_to_act_on_prints_a_clean_pass(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # The estimated velocity set to the reference in force: no tracking error, so the
+    # margin holds; nothing else changes. No WARN may remain (the paper's figures are none).
+    info, records = _records()
+    reference = None
+    for k, r in enumerate(records):
+        if isinstance(r, VelocityReference):
+            reference = r
+        elif isinstance(r, StateEstimate) and reference is not None:
+            records[k] = dataclasses.replace(
+                r,
+                surge_mps=reference.surge_mps,
+                sway_mps=reference.sway_mps,
+                yaw_rate_radps=reference.yaw_rate_radps,
+            )
+    copy = _write(tmp_path / "clean", info, records)
+    assert run_replay(str(copy), "--no-stack") == 0
+    out = capsys.readouterr().out
+    assert out.splitlines()[0].startswith(f"{copy}: PASS (")
+    assert "WARN" not in out
+    assert "[   ok] margin: tracking error within the margin" in out
+    assert out.strip().splitlines()[-1] == "1 log(s): no regression"
+
+
+def test_non_bags_are_skipped_and_nothing_to_replay_exits_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    logs = tmp_path / "logs"
+    shutil.copytree(LOG, logs / "run")
+    (logs / "README.md").write_text("# runs\n")
+    (logs / "notes").mkdir()
+    entries = sorted(str(p) for p in logs.iterdir())
+    assert run_replay(*entries, "--no-stack") == 0
+    out = capsys.readouterr().out
+    assert f"skipped {logs / 'README.md'}: not a bag" in out
+    assert f"skipped {logs / 'notes'}: a folder without bags" in out
+    assert out.strip().splitlines()[-1].startswith("1 log(s): no regression")
+    assert run_replay(str(logs / "README.md")) == 2
+    out, err = capsys.readouterr()
+    assert "hil replay: no bag among 1 argument(s)" in err
+    assert out.strip().splitlines()[-1] == "0 log(s): ERROR: no log to replay"
+
+
+def test_unreadable_wins_over_regression_and_both_are_reported(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    copy, _ = _tamper(tmp_path / "tampered", TAMPERINGS["winning"][0])
+    assert run_replay(str(copy), str(tmp_path / "missing"), "--no-stack") == 2
+    out, err = capsys.readouterr()
+    assert f"{copy}: FAIL" in out
+    assert f"hil replay: {tmp_path / 'missing'}: " in err
+    assert out.strip().splitlines()[-1] == "2 log(s): ERROR: some logs could not be replayed"
+
+
+def test_help_documents_the_exit_codes(capsys: pytest.CaptureFixture[str]) -> None:
+    parser = argparse.ArgumentParser()
+    replay.add_arguments(parser)
+    text = parser.format_help()
+    for line in ("0  no regression", "1  regression", "2  unreadable input"):
+        assert line in text
+
+
+def test_jsonl_has_one_line_per_interval_and_the_verdict_last(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    copy, decision = _tamper(tmp_path / "tampered", TAMPERINGS["chosen input"][0])
+    out_file = tmp_path / "out" / "replay.jsonl"
+    assert run_replay(str(LOG), str(copy), "--no-stack", "--jsonl", str(out_file)) == 1
+    lines = [json.loads(line) for line in out_file.read_text().splitlines()]
+    assert lines[-1] == {
+        "type": "verdict",
+        "verdict": "fail",
+        "exit_code": 1,
+        "logs": 2,
+        "failed": 1,
+        "errors": 0,
+        "warned": 1,
+    }
+    with BagReader(LOG) as reader:
+        n_decisions = sum(1 for _ in reader.records(["/hil/decision"]))
+    for path, verdict in ((str(LOG), "warn"), (str(copy), "fail")):
+        intervals = [x for x in lines if x["type"] == "interval" and x["log"] == path]
+        assert len(intervals) == n_decisions
+        assert [x["t_ns"] for x in intervals] == sorted(x["t_ns"] for x in intervals)
+        (log,) = [x for x in lines if x["type"] == "log" and x["log"] == path]
+        assert log["verdict"] == verdict
+        assert log["intervals"] == n_decisions
+    first = lines[0]
+    assert set(first) >= {
+        "t_ns",
+        "state",
+        "chosen_input",
+        "successor_contained",
+        "tube_contained",
+        "tracking_rms",
+        "tracking_max",
+        "verdict",
+    }
+    judged = [x for x in lines if x.get("successor_contained") is not None]
+    assert judged
+    assert all(isinstance(x["tube_contained"], bool) for x in judged)
+    (hit,) = [x for x in lines if x.get("log") == str(copy) and x.get("t_ns") == decision.t_ns]
+    assert hit["verdict"] == "fail"
+    assert hit["chosen_input"] != list(decision.chosen_input)
+    # "-" writes to stdout; the reports then go to stderr.
+    capsys.readouterr()
+    assert run_replay(str(LOG), "--no-stack", "--jsonl", "-") == 0
+    out, err = capsys.readouterr()
+    assert json.loads(out.strip().splitlines()[-1])["type"] == "verdict"
+    assert "[   ok] decisions" in err

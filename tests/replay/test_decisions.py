@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
-import numpy as np
+import dataclasses
 
+import numpy as np
+import pytest
+
+from hil.core.records import Decision
 from hil.replay.controllers import ScenarioCache
-from hil.replay.decisions import recompute
+from hil.replay.decisions import consistency, is_cost_tie, recompute
 from hil.runtime.assembly import layout_from_scenario
 from hil.scenarios import load_scenario
 
@@ -24,3 +28,61 @@ def test_recompute_mirrors_the_runtime_decision(caches: ScenarioCache) -> None:
     outside = recompute(controller, np.array([2.0, -1.5, 0.0]), np.zeros(3))  # inside O1
     assert not outside.winning
     assert outside.chosen == -1
+
+
+INPUTS = np.array([[0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.2, 0.0, 0.0], [0.1, 0.05, 0.0]])
+
+
+def _decision(**changes: object) -> Decision:
+    d = Decision.from_arrays(
+        1_000_000_000, [1.0, 2.0, 0.5], 7, 4.0, True, INPUTS[[1, 2]], [1, 2], 2, 1, "h"
+    )
+    return dataclasses.replace(d, **changes)  # type: ignore[arg-type]
+
+
+def test_a_consistent_decision_has_no_problem() -> None:
+    assert consistency(_decision(), INPUTS) == []
+    assert consistency(_decision(), None) == []
+
+
+@pytest.mark.parametrize(
+    ("changes", "field", "text"),
+    [
+        ({"chosen_input": (0.1, 0.0, 0.0)}, "chosen_input", "chosen_index 2 is input-grid row"),
+        ({"chosen_index": 3, "chosen_input": (0.1, 0.05, 0.0)}, "chosen_index", "not among"),
+        ({"chosen_index": 9}, "chosen_index", "outside the input grid of 4"),
+        (
+            {"safe_inputs": ((0.1, 0.0, 0.0), (0.25, 0.0, 0.0))},
+            "safe_inputs",
+            "safe_inputs[1]: recorded [0.25, 0.0, 0.0] but input-grid row 2",
+        ),
+        ({"safe_input_indices": (2, 2)}, "safe_input_indices", "listed twice"),
+        ({"winning": False}, "winning", "winning: recorded False but value 4.0"),
+        ({"chosen_index": -1}, "chosen_index", "-1 (none) although 2 safe inputs"),
+        ({"value": 0.0}, "safe_input_indices", "recorded at value 0.0"),
+    ],
+)
+def test_every_field_is_checked_against_the_others(
+    changes: dict[str, object], field: str, text: str
+) -> None:
+    problems = consistency(_decision(**changes), INPUTS)
+    assert any(f == field and text in t for f, t in problems), problems
+
+
+def test_without_a_grid_the_chosen_input_is_checked_against_its_safe_row() -> None:
+    ((field, text),) = consistency(_decision(chosen_input=(0.1, 0.0, 0.0)), None)
+    assert field == "chosen_input"
+    assert "the safe input of chosen_index 2 is [0.2, 0.0, 0.0]" in text
+
+
+def test_inputs_of_equal_cost_tie(caches: ScenarioCache) -> None:
+    scenario = load_scenario("coarse")
+    controller = caches.get(scenario)(layout_from_scenario(scenario))
+    grid = controller.inputs
+    # J is even in the sway and yaw components when the previous input is zero.
+    a = next(k for k, row in enumerate(grid) if row[1] > 0)
+    mirrored = np.array([grid[a][0], -grid[a][1], grid[a][2]])
+    b = int(np.flatnonzero(np.all(np.isclose(grid, mirrored), axis=1))[0])
+    assert is_cost_tie(controller, a, b, np.zeros(3))
+    c = next(k for k, row in enumerate(grid) if abs(row[0] - grid[a][0]) > 0.01)
+    assert not is_cost_tie(controller, a, c, np.zeros(3))

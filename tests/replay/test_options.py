@@ -13,6 +13,7 @@ def test_tolerance_parsing() -> None:
     assert tol.rms[0] == 0.05
     assert tol.rms[2] == 4.0
     assert tol.enforce_rms
+    assert tol.rms[1] == np.inf  # only the axes given are enforced
     assert tol.relative == 0.1
     assert not Tolerance.parse("").enforce_rms
     assert Tolerance.parse("sway_max=0.3").max_abs == (np.inf, 0.3, np.inf)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from xml.etree import ElementTree as ET
@@ -11,12 +12,16 @@ import pytest
 from hil.replay.regression import (
     Check,
     Finding,
+    Interval,
     LogReport,
     Status,
     exit_code,
+    jsonl_lines,
     junit_xml,
     render,
     summary_json,
+    verdict_jsonl,
+    verdict_line,
 )
 
 DECISION_DIFF = Finding(
@@ -56,13 +61,18 @@ def test_status_is_the_worst_check_and_error_wins() -> None:
     assert _broken().status is Status.ERROR
     assert LogReport("x").status is Status.PASS
     assert Status.worst([Status.SKIP, Status.PASS]) is Status.SKIP
+    # A check not judged does not make a judged log SKIP; only a log with none judged is.
+    skipped = Check("stack", Status.SKIP, "not judged")
+    passed = Check("decisions", Status.PASS, "ok")
+    assert LogReport("x", (passed, skipped)).status is Status.PASS
+    assert LogReport("x", (skipped,)).status is Status.SKIP
 
 
 def test_exit_code() -> None:
     assert exit_code([_good()]) == 0
     assert exit_code([_good(), _bad()]) == 1
     assert exit_code([_bad(), _broken()]) == 2
-    assert exit_code([]) == 0
+    assert exit_code([]) == 2  # nothing replayed is no verdict
 
 
 def test_regressions_are_the_findings_of_failed_checks() -> None:
@@ -113,3 +123,54 @@ def test_junit_xml_has_a_case_per_check_and_marks_failures() -> None:
     assert error is not None
     assert "does not exist" in (error.get("message") or "")
     assert cases[("logs/a", "decisions")].find("failure") is None
+
+
+def test_verdict_line_counts_the_logs_with_warnings() -> None:
+    assert verdict_line([_good()]) == "1 log(s): no regression (1 with warnings to look at)"
+    clean = LogReport("logs/d", (Check("decisions", Status.PASS, "ok"),))
+    assert verdict_line([clean]) == "1 log(s): no regression"
+    assert verdict_line([clean, _bad()]) == "2 log(s): REGRESSION"
+    assert verdict_line([_bad(), _broken()]).endswith("ERROR: some logs could not be replayed")
+    assert verdict_line([]) == "0 log(s): ERROR: no log to replay"
+
+
+def test_jsonl_lines_are_the_intervals_then_the_log() -> None:
+    interval = Interval(
+        50_000_000,
+        2_050_000_000,
+        (1.0, 2.0, 0.5),
+        3,
+        (0.1, 0.0, 0.0),
+        True,
+        False,
+        (0.01, 0.02, 1.5),
+        (0.05, 0.06, 4.0),
+        ("sway",),
+        Status.WARN,
+        ("left the tube",),
+    )
+    report = dataclasses.replace(_good(), intervals=(interval,))
+    first, log = (json.loads(line) for line in jsonl_lines(report))
+    assert first["type"] == "interval"
+    assert first["log"] == "logs/a"
+    assert first["t_s"] == 0.05
+    assert first["successor_contained"] is True
+    assert first["tube_contained"] is False
+    assert first["margin_exceeded"] == ["sway"]
+    assert first["verdict"] == "warn"
+    assert log == {
+        "type": "log",
+        "log": "logs/a",
+        "verdict": "warn",
+        "error": "",
+        "intervals": 1,
+        "checks": {"decisions": "pass", "margin": "warn"},
+        "wall_s": 1.5,
+    }
+    last = json.loads(verdict_jsonl([_good(), _broken()]))
+    assert (last["type"], last["verdict"], last["exit_code"], last["errors"]) == (
+        "verdict",
+        "error",
+        2,
+        1,
+    )

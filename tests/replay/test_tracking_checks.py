@@ -64,3 +64,16 @@ def test_tracking_metrics_show_yaw_in_degrees_per_second() -> None:
     assert check.metrics["rms"] == pytest.approx([0.0, 0.0, math.degrees(0.01)])
     assert check.metrics["max_abs"][2] == pytest.approx(math.degrees(0.01))
     assert "yaw 0.57296 deg/s" in check.summary
+
+
+def test_tracking_is_a_figure_unless_a_threshold_is_set() -> None:
+    run = _synthetic_run(dict.fromkeys(range(80), 0.05))  # far above the paper's tank RMS
+    figures = check_tracking(run, Tolerance())
+    assert figures.status is Status.PASS
+    assert "no threshold set (the paper's tank RMS, for comparison: 0.00768" in figures.summary
+    assert figures.metrics["paper_rms"] == [0.00768, 0.00431, 0.62108]
+    enforced = check_tracking(run, Tolerance.parse("surge=0.01"))
+    assert enforced.status is Status.FAIL
+    (finding,) = enforced.findings
+    assert finding.data["axis"] == "surge"
+    assert check_tracking(run, Tolerance.parse("sway=0.01")).status is Status.PASS
