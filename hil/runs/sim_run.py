@@ -100,8 +100,9 @@ class RecordingSolver:
     """A layout solver that keeps every controller it returned, by synthesis version.
 
     The resynthesizer numbers its syntheses 1, 2, ... in call order, failures included;
-    this counts the same way. Consecutive versions for the same layout share one
-    controller object, so a re-synthesis timer costs no memory.
+    this counts the same way. Every call synthesizes (a re-synthesis timer must cost what
+    it costs on the vessel); consecutive versions for the same layout then keep the first
+    controller object (the same layout gives the same tables), so memory stays bounded.
 
     Args:
         solver: The solver to wrap.
@@ -116,10 +117,10 @@ class RecordingSolver:
     def __call__(self, layout: ObstacleLayout) -> SymbolicAdapter:
         """Solve `layout` and remember the controller under its version."""
         self._calls += 1
+        adapter = self._solver(layout)
         if self._last is not None and self._last[0] == layout.obstacles:
             adapter = self._last[1]
         else:
-            adapter = self._solver(layout)
             self._last = (layout.obstacles, adapter)
         self.controllers[self._calls] = adapter.controller
         return adapter
