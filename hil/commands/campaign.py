@@ -13,6 +13,8 @@ import os
 import sys
 from dataclasses import asdict
 
+from hil.commands.common import positive_seconds
+
 HELP = "run many simulated dockings from random starts in parallel and compare with the paper"
 
 
@@ -24,7 +26,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1,
                         help="parallel processes (default: all cores)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the starts and the runs")
-    parser.add_argument("--max-duration", type=float, default=600.0, metavar="S",
+    parser.add_argument("--max-duration", type=positive_seconds, default=600.0, metavar="S",
                         help="give a run up after this many simulated seconds")
     parser.add_argument("--json", action="store_true",
                         help="end with the figures as one JSON object on the last line")
