@@ -22,6 +22,7 @@ from hil.scenarios.scenario import (
     Scenario,
     Target,
     TrackingMargin,
+    check_geometry,
     check_sets,
 )
 
@@ -262,4 +263,5 @@ def _parse(data: dict[str, Any], default_name: str) -> Scenario:
         target=target,
     )
     check_sets(scenario)
+    check_geometry(scenario)
     return scenario

@@ -29,6 +29,7 @@ __all__ = [
     "Scenario",
     "Target",
     "TrackingMargin",
+    "check_geometry",
     "check_sets",
     "hull_footprint",
 ]
@@ -242,10 +243,23 @@ def check_sets(scenario: Scenario) -> None:
                 f"key 'target' {scenario.target.shape!r} overlaps "
                 f"obstacles[{n}] ({obstacle.name!r})"
             )
+
+
+def check_geometry(scenario: Scenario) -> None:
+    """Check a scenario file's layout: obstacles inside the arena, the target reachable.
+
+    Only for the scenario as written: obstacles reported at run time may leave the
+    arena, and whether their layout has a solution is the synthesis' answer.
+
+    Raises:
+        ScenarioError: An obstacle reaches outside the arena, or every point of the
+            abstract target is covered by the walls or the inflated obstacles.
+    """
+    x0, x1 = scenario.x_range_m
+    y0, y1 = scenario.y_range_m
+    tol = 1e-9
+    for n, obstacle in enumerate(scenario.obstacles):
         v = obstacle.shape.vertices()
-        x0, x1 = scenario.x_range_m
-        y0, y1 = scenario.y_range_m
-        tol = 1e-9
         if (v[:, 0].min() < x0 - tol or v[:, 0].max() > x1 + tol
                 or v[:, 1].min() < y0 - tol or v[:, 1].max() > y1 + tol):
             raise ScenarioError(
@@ -253,6 +267,7 @@ def check_sets(scenario: Scenario) -> None:
                 f"the arena state.x_m {list(scenario.x_range_m)!r}, "
                 f"state.y_m {list(scenario.y_range_m)!r}"
             )
+    target = scenario.abstract_target()
     if not _has_free_point(scenario, target):
         raise ScenarioError(
             f"key 'target' cannot be reached: its abstract set {target!r} lies inside the "
