@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import contextlib
 import math
+import os
+import re
 import threading
 import time
 from collections import deque
@@ -49,6 +51,17 @@ class RosTopics:
     """geometry_msgs/PoseArray of tracked obstacle centres (lab frame), one pose per
     obstacle in the scenario's order; "" keeps the scenario's layout fixed."""
 
+    def __post_init__(self) -> None:
+        for name in ("pose", "imu", "tunnel", "port", "starboard", "obstacles"):
+            topic = getattr(self, name)
+            if name == "obstacles" and topic == "":
+                continue
+            if not (isinstance(topic, str) and _TOPIC_NAME.match(topic)):
+                raise ValueError(
+                    f"topics.{name} = {topic!r} is not a ROS topic name (e.g. "
+                    "'/voyager/measurement/pose': letters, digits and '_' between single '/')"
+                )
+
 
 @dataclass(frozen=True, slots=True)
 class RosConfig:
@@ -77,6 +90,33 @@ class RosConfig:
     def __post_init__(self) -> None:
         if self.qos_depth < 1:
             raise ValueError(f"qos_depth must be at least 1, got {self.qos_depth!r}")
+        if self.domain_id is not None:
+            check_domain_id(self.domain_id, "domain_id")
+        if not _NODE_NAME.match(self.node_name):
+            raise ValueError(f"node_name {self.node_name!r} is not a ROS node name "
+                             "(letters, digits and '_', not starting with a digit)")
+
+
+# ROS 2 topic names (design.ros2.org, "Topic and Service name mapping"): tokens of
+# letters, digits and underscores, not starting with a digit, joined by single "/".
+_TOPIC_NAME = re.compile(r"^(~/|/)?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*$")
+_NODE_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+# DDS maps a domain to UDP ports; above 232 they leave the valid range (ROS 2 docs,
+# "The ROS_DOMAIN_ID").
+MAX_DOMAIN_ID = 232
+
+
+def check_domain_id(value: object, what: str) -> int:
+    """Return `value` as a ROS domain id, or raise ValueError naming `what` and the value."""
+    if isinstance(value, bool) or not isinstance(value, int | str):
+        raise ValueError(f"{what} must be an integer 0..{MAX_DOMAIN_ID}, got {value!r}")
+    try:
+        domain = int(value)
+    except ValueError:
+        domain = -1
+    if not 0 <= domain <= MAX_DOMAIN_ID:
+        raise ValueError(f"{what} must be an integer 0..{MAX_DOMAIN_ID}, got {value!r}")
+    return domain
 
 
 def stamp_to_ns(stamp: Any) -> int:
@@ -202,10 +242,12 @@ class _Inbox:
         self._items: deque[Any] = deque(maxlen=maxlen)
         self._lock = threading.Lock()
         self.rejected = 0
+        self.arrived = threading.Event()
 
     def put(self, item: Any) -> None:
         with self._lock:
             self._items.append(item)
+        self.arrived.set()
 
     def reject(self) -> None:
         with self._lock:
@@ -232,6 +274,10 @@ class RosPoseSource:
     def poll(self) -> list[PoseSample]:
         """Return the poses received since the last call, oldest first."""
         return sorted(self._inbox.drain(), key=lambda s: s.t_ns)
+
+    def wait_first(self, timeout_s: float) -> bool:
+        """Wait up to `timeout_s` for the first accepted pose (kept for :meth:`poll`)."""
+        return self._inbox.arrived.wait(timeout_s)
 
 
 class RosImuSource:
@@ -368,6 +414,30 @@ class RosClock:
         return bool(self._node.get_clock().ros_time_is_active)
 
 
+def init_context(rclpy: Any, context: Any, domain_id: int | None) -> int:
+    """Initialize an rclpy context on `domain_id`, else on ROS_DOMAIN_ID (default 0).
+
+    Returns:
+        The domain joined.
+
+    Raises:
+        RosBackendError: ROS_DOMAIN_ID is not a valid domain, or rclpy refused.
+    """
+    if domain_id is None:
+        try:
+            domain = check_domain_id(os.environ.get("ROS_DOMAIN_ID", "0") or "0",
+                                     "ROS_DOMAIN_ID")
+        except ValueError as err:
+            raise RosBackendError(str(err)) from err
+    else:
+        domain = domain_id
+    try:
+        rclpy.init(context=context, domain_id=domain)
+    except Exception as err:  # rclpy raises its own RCLError types
+        raise RosBackendError(f"cannot start ROS 2 on domain {domain!r}: {err}") from err
+    return domain
+
+
 class RosWorld:
     """The stack's view of the vessel over ROS 2: pose, IMU, obstacles, thrusters, clock.
 
@@ -395,6 +465,8 @@ class RosWorld:
         self.imu_source = RosImuSource(self._imu_inbox)
         self.thruster_sink: RosThrusterSink | None = None
         self.clock: RosClock | None = None
+        self.domain_id: int | None = None
+        """The domain the world joined (from the config or ROS_DOMAIN_ID), once open."""
 
     def open(self) -> RosWorld:
         """Start the node, its subscriptions and publishers, and the executor thread.
@@ -417,10 +489,7 @@ class RosWorld:
             ) from err
         cfg = self.config
         self._context = rclpy.Context()
-        if cfg.domain_id is None:
-            rclpy.init(context=self._context)
-        else:
-            rclpy.init(context=self._context, domain_id=cfg.domain_id)
+        self.domain_id = init_context(rclpy, self._context, cfg.domain_id)
         overrides = [Parameter("use_sim_time", Parameter.Type.BOOL, cfg.use_sim_time)]
         self._node = rclpy.create_node(
             cfg.node_name, context=self._context, parameter_overrides=overrides

@@ -24,6 +24,8 @@ if TYPE_CHECKING:
 
     from hil.runs.campaign import CampaignRun
 
+from hil.commands.common import positive_seconds
+
 HELP = "run many simulated dockings from random starts in parallel and compare with the paper"
 
 
@@ -35,7 +37,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1,
                         help="parallel processes (default: all cores)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the starts and the runs")
-    parser.add_argument("--max-duration", type=float, default=600.0, metavar="S",
+    parser.add_argument("--max-duration", type=positive_seconds, default=600.0, metavar="S",
                         help="give a run up after this many simulated seconds")
     parser.add_argument("--moving", type=float, default=0.5, metavar="FRACTION",
                         help="share of runs that start with a random body velocity, uniform "

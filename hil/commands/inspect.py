@@ -82,8 +82,14 @@ def run(args: argparse.Namespace) -> int:
     """
     from hil.bag.errors import ReplayError
     from hil.bag.run_data import load_run
+    from hil.commands.common import missing_display
 
     log = Path(args.log)
+    headless = missing_display() if args.spawn else None
+    if headless is not None:
+        return _error(f"--spawn needs a viewer window but there is {headless}: "
+                      f"write a recording with -o run.rrd and open it where there is a screen "
+                      f"(rerun run.rrd)")
     output: Path | None = args.output
     if output is None and not args.spawn:
         output = default_output(log)

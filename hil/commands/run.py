@@ -8,11 +8,20 @@ the summary; `--json` adds the same as one JSON object on the last line.
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING
+
+from hil.commands.common import (
+    EXIT_ABORTED,
+    EXIT_BAD_INPUT,
+    EXIT_DOCKED,
+    EXIT_NOT_DOCKED,
+    missing_display,
+    positive_seconds,
+    start_pose,
+)
 
 if TYPE_CHECKING:
     from hil.runs.sim_run import LiveView
@@ -22,28 +31,19 @@ if TYPE_CHECKING:
 HELP = "dock the vessel in simulation (or over ROS 2), record the run and summarize it"
 
 
-def _start(text: str) -> tuple[float, float, float]:
-    try:
-        x, y, psi = (float(v) for v in text.split(","))
-    except ValueError as err:
-        raise argparse.ArgumentTypeError(
-            f"--start needs X,Y,PSI in metres and degrees, got {text!r}") from err
-    return (x, y, math.radians(psi))
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Declare the command's arguments."""
     parser.add_argument("scenario", nargs="?", default="paper", metavar="SCENARIO",
                         help="packaged name (paper, coarse) or a .toml path (default: paper)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the simulated world")
-    parser.add_argument("--start", type=_start, default=None, metavar="X,Y,PSI_DEG",
+    parser.add_argument("--start", type=start_pose, default=None, metavar="X,Y,PSI_DEG",
                         help="start pose (m, m, deg); default: right of the arena, bow up")
     parser.add_argument("--backend", choices=("sim",), default="sim",
                         help="world to run in (the vessel's ROS entry point is `hil vessel`)")
     parser.add_argument("--out", type=Path, default=None, metavar="DIR",
                         help="bag directory to create (default: runs/<scenario>-<time>)")
     parser.add_argument("--no-record", action="store_true", help="keep the run in memory only")
-    parser.add_argument("--max-duration", type=float, default=600.0, metavar="S",
+    parser.add_argument("--max-duration", type=positive_seconds, default=600.0, metavar="S",
                         help="give up after this many simulated seconds")
     parser.add_argument("--rerun", nargs="?", const="spawn", default=None, metavar="RRD",
                         help="stream the run live to Rerun: a spawned viewer, or into RRD")
@@ -64,21 +64,31 @@ def _live_rerun(target: str) -> LiveView:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run, print the summary; exit 0 when docked, 1 when not, 2 on bad input."""
+    """Run, print the summary; exit status as in :mod:`hil.commands.common`.
+
+    0 docked, 1 not docked (time limit), 2 bad input (before anything ran), 3 aborted
+    (synthesis failed, or the start has no safe input).
+    """
     from rich.console import Console
 
     from hil.bag.errors import ReplayError
     from hil.controllers.symbolic import SymbolicError
-    from hil.runs.sim_run import SimRunSpec, run_in_sim
+    from hil.runs.sim_run import SimRunSpec, default_start, run_in_sim
     from hil.runtime.settings import LoopConfig
-    from hil.scenarios import ScenarioError, load_scenario
+    from hil.scenarios import ScenarioError, check_start, load_scenario
 
     console = Console(stderr=args.json)
+    if args.rerun == "spawn" and (headless := missing_display()) is not None:
+        print(f"hil run: --rerun needs a viewer window but there is {headless}: "
+              "stream into a file instead (--rerun run.rrd)", file=sys.stderr)
+        return EXIT_BAD_INPUT
     try:
-        name = load_scenario(args.scenario).name
+        scenario = load_scenario(args.scenario)
+        check_start(scenario, *(args.start or default_start(scenario)))
     except ScenarioError as err:
         print(f"hil run: {err}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
+    name = scenario.name
     out = None
     if not args.no_record:
         stamp = time.strftime("%Y%m%d-%H%M%S")
@@ -91,8 +101,17 @@ def run(args: argparse.Namespace) -> int:
             summary = run_in_sim(spec, live=live)
     except (ScenarioError, SymbolicError, ReplayError, ValueError) as err:
         print(f"hil run: {err}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
+    except MemoryError as err:
+        print(f"hil run: not enough memory for the {name!r} grid ({err}): "
+              "use a coarser [grid] cell_m or fewer heading_cells", file=sys.stderr)
+        return EXIT_BAD_INPUT
     summary.render(console)
+    if summary.aborted:
+        print(f"hil run: aborted: {summary.end_reason} (log: {summary.log or 'not recorded'})",
+              file=sys.stderr)
     if args.json:
         print(summary.to_json())
-    return 0 if summary.docked else 1
+    if summary.docked:
+        return EXIT_DOCKED
+    return EXIT_ABORTED if summary.aborted else EXIT_NOT_DOCKED

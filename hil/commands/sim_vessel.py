@@ -7,10 +7,11 @@ Publishes pose and IMU, applies thruster commands, and with `--clock` publishes
 from __future__ import annotations
 
 import argparse
-import math
 import signal
 import sys
 from types import FrameType
+
+from hil.commands.common import positive_seconds, start_pose
 
 HELP = "simulate the vessel as a ROS 2 node on the lab's topics (for DDS tests of the stack)"
 
@@ -20,32 +21,31 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scenario", nargs="?", default="paper", metavar="SCENARIO",
                         help="scenario whose arena and obstacles to simulate (default: paper)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the sensor noise")
-    parser.add_argument("--start", default=None, metavar="X,Y,PSI_DEG",
+    parser.add_argument("--start", type=start_pose, default=None, metavar="X,Y,PSI_DEG",
                         help="start pose (m, m, deg); default: right of the arena, bow up")
     parser.add_argument("--speed", type=float, default=1.0,
                         help="simulated seconds per wall second (needs --clock above 1)")
     parser.add_argument("--clock", action="store_true", help="publish /clock (ROS sim time)")
-    parser.add_argument("--duration", type=float, default=None, metavar="S",
+    parser.add_argument("--duration", type=positive_seconds, default=None, metavar="S",
                         help="stop after this many simulated seconds")
     parser.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID to use")
 
 
 def run(args: argparse.Namespace) -> int:
     """Simulate until SIGINT/SIGTERM or the duration; 2 on bad input."""
-    from hil.adapters.ros import RosBackendError, RosConfig
+    from hil.adapters.ros import RosBackendError, RosConfig, check_domain_id
     from hil.adapters.sim import SimConfig, SimWorld
     from hil.runs.ros_vessel import SimVesselNode
     from hil.runs.sim_run import default_start
     from hil.runtime.assembly import layout_from_scenario
-    from hil.scenarios import ScenarioError, load_scenario
+    from hil.scenarios import ScenarioError, check_start, load_scenario
 
     try:
         scenario = load_scenario(args.scenario)
-        if args.start is None:
-            start = default_start(scenario)
-        else:
-            x, y, psi = (float(v) for v in args.start.split(","))
-            start = (x, y, math.radians(psi))
+        start = default_start(scenario) if args.start is None else args.start
+        check_start(scenario, *start)
+        if args.domain_id is not None:
+            check_domain_id(args.domain_id, "--domain-id")
         if args.speed != 1.0 and not args.clock:
             raise ValueError("--speed other than 1 needs --clock (the stack must follow /clock)")
         world = SimWorld(SimConfig(start=start, seed=args.seed,
@@ -57,13 +57,19 @@ def run(args: argparse.Namespace) -> int:
         print(f"hil sim-vessel: {err}", file=sys.stderr)
         return 2
 
-    def stop(_signum: int, _frame: FrameType | None) -> None:
+    def stop(signum: int, _frame: FrameType | None) -> None:
+        node.stopped_by = signal.Signals(signum).name
         node.stop()
 
     signal.signal(signal.SIGINT, stop)
     signal.signal(signal.SIGTERM, stop)
+    def progress(line: str) -> None:
+        print(f"hil sim-vessel: {line}", file=sys.stderr, flush=True)
+
     try:
-        node.run(args.duration)
+        node.run(args.duration, progress=progress)
+        if node.stopped_by is not None:
+            progress(f"stopped by {node.stopped_by}")
     except RosBackendError as err:
         print(f"hil sim-vessel: {err}", file=sys.stderr)
         return 2

@@ -50,9 +50,11 @@ def run(args: argparse.Namespace) -> int:
     )
     from hil.scenarios import ScenarioError, load_scenario
 
+    grid_text = "scenario's"
     try:
         scenario = load_scenario(args.scenario)
         problem = SymbolicProblem.from_scenario(scenario)
+        grid_text = " x ".join(str(n) for n in problem.grid.shape)
         start = time.perf_counter()
         tables, cached = tables_for(
             problem.grid,
@@ -75,6 +77,11 @@ def run(args: argparse.Namespace) -> int:
         ]
     except (ScenarioError, SymbolicError) as err:
         print(f"error: {err}", file=sys.stderr)
+        return 2
+    except MemoryError as err:
+        print(f"error: not enough memory to synthesize on the {grid_text} grid of "
+              f"{args.scenario!r} ({err}): use a coarser [grid] cell_m or fewer "
+              "heading_cells", file=sys.stderr)
         return 2
     controller = runs[-1]
     stats = controller.stats

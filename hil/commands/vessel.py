@@ -10,6 +10,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from hil.commands.common import EXIT_ABORTED, EXIT_BAD_INPUT, EXIT_DOCKED, EXIT_NOT_DOCKED
+
 HELP = "run the stack on the vessel over ROS 2 (wall time), recorded; stops cleanly on SIGINT"
 
 
@@ -24,7 +26,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run until docked or stopped; exit 0 when docked, 1 when not, 2 on bad input."""
+    """Run until docked or stopped; exit status as in :mod:`hil.commands.common`.
+
+    0 docked, 1 not docked (time limit, SIGINT/SIGTERM), 2 bad input (config, ROS set-up),
+    3 aborted (synthesis failed, or no safe input from the vessel's state).
+    """
     from rich.console import Console
 
     from hil.adapters.ros import RosBackendError
@@ -33,13 +39,24 @@ def run(args: argparse.Namespace) -> int:
     from hil.runs.vessel_run import VesselConfig, run_on_ros
     from hil.scenarios import ScenarioError
 
+    def progress(line: str) -> None:
+        print(f"hil vessel: {line}", file=sys.stderr, flush=True)
+
     try:
         config = VesselConfig.load(args.config)
-        summary = run_on_ros(config, args.out)
+        summary = run_on_ros(config, args.out, progress=progress)
     except (ConfigError, ScenarioError, RosBackendError, ReplayError) as err:
         print(f"hil vessel: {err}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
+    except MemoryError as err:
+        print(f"hil vessel: not enough memory for the scenario's grid ({err}): "
+              "use a coarser [grid] cell_m or fewer heading_cells", file=sys.stderr)
+        return EXIT_BAD_INPUT
     summary.render(Console(stderr=args.json))
+    if summary.aborted:
+        progress(f"aborted: {summary.end_reason} (log: {summary.log})")
     if args.json:
         print(summary.to_json())
-    return 0 if summary.docked else 1
+    if summary.docked:
+        return EXIT_DOCKED
+    return EXIT_ABORTED if summary.aborted else EXIT_NOT_DOCKED

@@ -9,8 +9,10 @@ it exactly as it will talk to the vessel.
 
 from __future__ import annotations
 
+import math
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import replace
 from typing import Any
 
@@ -20,6 +22,7 @@ from hil.adapters.ros import (
     RosConfig,
     fill_imu_msg,
     fill_pose_msg,
+    init_context,
     thruster_command_from_components,
 )
 from hil.adapters.sim import SimWorld
@@ -27,6 +30,12 @@ from hil.core.samples import ThrusterCommand
 
 # Simulated time advanced per publication cycle (s).
 _CYCLE_S = 0.01
+# Wall seconds between status lines.
+STATUS_PERIOD_S = 5.0
+
+
+def _quiet(_line: str) -> None:
+    pass
 
 
 class SimVesselNode:
@@ -53,22 +62,39 @@ class SimVesselNode:
         self._command: ThrusterCommand | None = None
         self._lock = threading.Lock()
         self.commands_received = 0
+        self._progress: Callable[[str], None] = _quiet
+        self.stopped_by: str | None = None
+        """What stopped the node (a signal's name), set by whoever calls :meth:`stop`."""
 
     def stop(self) -> None:
         """Ask :meth:`run` to return (safe from a signal handler)."""
         self._stop.set()
+
+    def status_line(self, t_ns: int) -> str:
+        """Return one line: simulated time, the true pose, thruster messages received."""
+        x, y, psi = (float(v) for v in self.world.eta)
+        return (f"t={t_ns / NS_PER_S:6.1f} s  at ({x:+.2f} m, {y:+.2f} m, "
+                f"{math.degrees(psi):+.0f} deg)  thruster messages {self.commands_received}")
 
     def _on_wrench(self, name: str, msg: Any) -> None:
         with self._lock:
             self._wrench[name] = (float(msg.force.x), float(msg.force.y))
             self.commands_received += 1
 
-    def run(self, duration_s: float | None = None) -> None:
+    def run(self, duration_s: float | None = None,
+            progress: Callable[[str], None] = _quiet) -> None:
         """Publish and simulate until stopped or `duration_s` of simulated time has passed.
 
+        Args:
+            duration_s: Simulated seconds to run; None until :meth:`stop`.
+            progress: Receives a line on start, a status line every
+                :data:`STATUS_PERIOD_S` of wall time, and why it stopped.
+
         Raises:
-            RosBackendError: rclpy or the message packages are missing.
+            RosBackendError: rclpy or the message packages are missing, or ROS 2
+                cannot start on the domain.
         """
+        self._progress = progress
         try:
             import rclpy
             from geometry_msgs.msg import PoseWithCovarianceStamped, Wrench
@@ -80,10 +106,7 @@ class SimVesselNode:
                                   ) from err
         cfg = self.config
         context = rclpy.Context()
-        if cfg.domain_id is None:
-            rclpy.init(context=context)
-        else:
-            rclpy.init(context=context, domain_id=cfg.domain_id)
+        domain = init_context(rclpy, context, cfg.domain_id)
         node = rclpy.create_node("hil_sim_vessel", context=context)
         try:
             pose_pub = node.create_publisher(PoseWithCovarianceStamped, cfg.topics.pose,
@@ -98,6 +121,11 @@ class SimVesselNode:
             executor.add_node(node)
             # In wall time, samples carry the node's wall clock, as the real sensors do.
             offset_ns = 0 if clock_pub is not None else int(node.get_clock().now().nanoseconds)
+            clock = (f"/clock at {self.speed:g}x real time" if clock_pub is not None
+                     else "wall time")
+            progress(f"publishing pose on {cfg.topics.pose} and IMU on {cfg.topics.imu}, "
+                     f"thrust from {cfg.topics.tunnel}, {cfg.topics.port}, {cfg.topics.starboard} "
+                     f"(ROS domain {domain}, {clock})")
             self._loop(executor, pose_pub, imu_pub, clock_pub, PoseWithCovarianceStamped, Imu,
                        Clock, duration_s, offset_ns)
             executor.shutdown()
@@ -110,11 +138,16 @@ class SimVesselNode:
               offset_ns: int) -> None:
         world = self.world
         wall_start = time.monotonic()
+        next_status = wall_start + STATUS_PERIOD_S
         cycle_ns = round(_CYCLE_S * NS_PER_S)
         t_ns = world.clock.now_ns()
         while not self._stop.is_set():
             if duration_s is not None and t_ns >= duration_s * NS_PER_S:
+                self._progress(f"stopped: {duration_s:g} s simulated (--duration)")
                 return
+            if time.monotonic() >= next_status:
+                next_status += STATUS_PERIOD_S
+                self._progress(self.status_line(t_ns))
             executor.spin_once(timeout_sec=0.0)
             with self._lock:
                 port, stbd, tunnel = self._wrench["port"], self._wrench["starboard"], \

@@ -83,6 +83,8 @@ class RunSummary:
             in simulated time.
         overruns: Ticks that started more than one period late.
         log: Where the run's log is (None when not recorded).
+        aborted: Whether the run stopped because it could not go on (synthesis
+            failed, no safe input at the start); `end_reason` says why.
     """
 
     scenario: str
@@ -106,6 +108,7 @@ class RunSummary:
     period_jitter_p99_ms: float
     overruns: int
     log: str | None
+    aborted: bool = False
 
     def to_json(self) -> str:
         """Return the summary as one line of JSON (NaN and inf as null)."""
@@ -227,6 +230,7 @@ def summarize_run(
         period_jitter_p99_ms=period_jitter_p99_ms(stats.tick_wall_ns, nominal_s),
         overruns=stats.overruns,
         log=log,
+        aborted=stats.aborted,
     )
 
 

@@ -8,8 +8,9 @@ so a run interrupted on the tank still leaves a complete bag.
 from __future__ import annotations
 
 import signal
+import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,7 +27,7 @@ from hil.core.config import from_table, load_toml
 from hil.runs.sim_run import build_runtime, scenario_hash, synthesizer_for
 from hil.runs.summary import RunSummary, summarize_run
 from hil.runtime.assembly import layout_from_scenario, warm_up_kernels
-from hil.runtime.loop import Runtime, World
+from hil.runtime.loop import Mode, Runtime, World
 from hil.runtime.resynthesis import ResynthesisMode
 from hil.runtime.settings import LoopConfig
 from hil.scenarios import load_scenario
@@ -58,11 +59,53 @@ class VesselConfig:
         return from_table(VesselConfig, load_toml(path))
 
 
+Progress = Callable[[str], None]
+"""Receives one line of what the run is doing (the command prints it)."""
+
+# Seconds between status lines while the loop runs, and between reminders while waiting.
+STATUS_PERIOD_S = 5.0
+
+
+def _quiet(_line: str) -> None:
+    pass
+
+
+def status_line(runtime: Runtime) -> str:
+    """Return one line on the running loop: time, mode, estimate, decisions, controller."""
+    stats = runtime.stats
+    t_s = (runtime.world.clock.now_ns() - stats.start_ns) / 1e9
+    where = "no estimate yet"
+    if stats.eta_hat:
+        x, y, psi = (float(v) for v in np.asarray(stats.eta_hat[-1]).reshape(3))
+        where = f"at ({x:+.2f} m, {y:+.2f} m, {np.degrees(psi):+.0f} deg)"
+    return (f"t={t_s:6.1f} s  {runtime.mode.value:<9} {where}  decisions {stats.decisions}, "
+            f"controller v{runtime.controller_version}, pose losses {stats.pose_losses}")
+
+
 @contextmanager
-def _stop_on_signals(runtime: Runtime) -> Iterator[None]:
-    """Route SIGINT and SIGTERM to a clean stop of the loop while inside the block."""
+def _status_every(period_s: float, runtime: Runtime, progress: Progress) -> Iterator[None]:
+    """Report :func:`status_line` every `period_s` of wall time while inside the block."""
+    done = threading.Event()
+
+    def report() -> None:
+        while not done.wait(period_s):
+            if runtime.mode not in (Mode.DOCKED, Mode.STOPPED):
+                progress(status_line(runtime))
+
+    thread = threading.Thread(target=report, name="hil-status", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        done.set()
+        thread.join(timeout=1.0)
+
+
+@contextmanager
+def _stop_on_signals(stop: Callable[[str], None]) -> Iterator[None]:
+    """Route SIGINT and SIGTERM to `stop(reason)` while inside the block."""
     def handler(signum: int, _frame: FrameType | None) -> None:
-        runtime.request_stop(f"stopped by {signal.Signals(signum).name}")
+        stop(f"stopped by {signal.Signals(signum).name}")
 
     previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
@@ -72,18 +115,39 @@ def _stop_on_signals(runtime: Runtime) -> Iterator[None]:
             signal.signal(s, h)
 
 
-def run_on_ros(config: VesselConfig, out_dir: Path | None = None) -> RunSummary:
+def _wait_for_pose(ros: RosWorld, topic: str, progress: Progress) -> str | None:
+    """Block until the first pose arrives; return why it stopped waiting (a signal), or None."""
+    stopped: list[str] = []
+    progress(f"waiting for pose on {topic} (ROS domain {ros.domain_id})...")
+    waited_s = 0.0
+    with _stop_on_signals(stopped.append):
+        while not stopped and not ros.pose_source.wait_first(0.1):
+            waited_s += 0.1
+            if waited_s >= STATUS_PERIOD_S:
+                waited_s = 0.0
+                progress(f"still waiting for pose on {topic} (ROS domain {ros.domain_id}): "
+                         f"is the motion capture publishing? (ros2 topic echo {topic})")
+    return stopped[0] if stopped else None
+
+
+def run_on_ros(config: VesselConfig, out_dir: Path | None = None,
+               progress: Progress = _quiet) -> RunSummary:
     """Run the stack against the vessel over ROS 2 until docked, stopped or timed out.
+
+    It synthesizes the first controller, waits for the first pose, then runs the loop,
+    telling `progress` each step and a status line every :data:`STATUS_PERIOD_S`.
 
     Args:
         config: The vessel configuration.
         out_dir: The run's bag directory (default: a new one under `runs_dir`).
+        progress: Receives one line per step (default: nothing).
 
     Returns:
         The run's summary, judged on the state estimates (there is no ground truth).
     """
     wall_start = time.perf_counter()
     scenario = load_scenario(config.scenario)
+    progress(f"building the abstraction for the {scenario.name!r} scenario...")
     synthesizer = synthesizer_for(scenario)
     if out_dir is None:
         out_dir = Path(config.runs_dir) / f"{scenario.name}-vessel-{time.strftime('%Y%m%d-%H%M%S')}"
@@ -98,14 +162,22 @@ def run_on_ros(config: VesselConfig, out_dir: Path | None = None) -> RunSummary:
         runtime = build_runtime(scenario, world, recorder, config.loop, synthesizer,
                                 ResynthesisMode.THREAD)
         # Compile and synthesize before the loop starts, so its first ticks keep time.
+        progress("synthesizing the controller...")
         warm_up_kernels(config.loop.loop_hz)
         runtime.resynthesizer.submit(obstacles.latest())
         runtime.resynthesizer.wait_idle()
         try:
-            with _stop_on_signals(runtime):
+            stopped = _wait_for_pose(ros, config.ros.topics.pose, progress)
+            if stopped is not None:
+                runtime.request_stop(f"{stopped} while waiting for pose")
+            else:
+                progress(f"running: recording to {out_dir}")
+            with _stop_on_signals(runtime.request_stop), \
+                    _status_every(STATUS_PERIOD_S, runtime, progress):
                 stats = runtime.run()
         finally:
             runtime.resynthesizer.close()
+    progress(f"stopped: {stats.end_reason}")
     eta = np.asarray(stats.eta_hat).reshape(-1, 3)
     return summarize_run(scenario=scenario, scenario_name=config.scenario, seed=None,
                          backend="ros", stats=stats, trajectory=eta,

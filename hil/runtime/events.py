@@ -15,7 +15,9 @@ class EventCode(enum.Enum):
     SYNTHESIS_OVERRUN = "synthesis_overrun"
     """Synthesis slower than its period: the last controller stays in charge."""
     NOT_WINNING = "not_winning"
-    """The estimate is outside the winning set: the vessel is stopped (nu_ref = 0)."""
+    """The estimate is outside the winning set: the vessel is stopped (nu_ref = 0); the
+    run is aborted at the run's first decision, or when the next decision is still not
+    winning."""
     NO_CONTROLLER = "no_controller"
     """No valid controller: the vessel is stopped (nu_ref = 0)."""
     POSE_LOST = "pose_lost"
@@ -34,3 +36,6 @@ class EventCode(enum.Enum):
     """The run's time limit passed before docking."""
     STOPPED = "stopped"
     """The run was stopped (signal, fatal fault)."""
+    ABORTED = "aborted"
+    """The run cannot go on (no controller for the layout, a state no safe input leaves
+    from): thrusters to zero and the run ends at once, the text saying why."""

@@ -14,7 +14,7 @@ from __future__ import annotations
 import enum
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -133,6 +133,8 @@ class Runtime:
         self.stats.start_ns = self._start_ns
         self._target_since_ns = 0
         self._stop_requested: str | None = None
+        self._abort: str | None = None
+        self._not_winning_before = False
 
     # -- public -----------------------------------------------------------------------
 
@@ -182,6 +184,9 @@ class Runtime:
         if t_ns >= self._next_decision_ns:
             self._decide(t_ns, eta_hat)
             self._next_decision_ns = t_ns + round(self.config.decision_period_s * NS_PER_S)
+            if self._abort is not None:
+                self._stop(t_ns, EventCode.ABORTED, self._abort)
+                return
         if self.mode is Mode.WAITING:
             self._send(ThrusterCommand.zero(t_ns))
             return
@@ -252,7 +257,10 @@ class Runtime:
             self._last_submit_ns = t_ns
             return
         if changed:
-            self.log.obstacles(layout)
+            # A layout known before the run (the scenario's, stamped 0) is recorded when
+            # the run first sees it, so that every topic of the log shares the run's clock.
+            self.log.obstacles(layout if layout.t_ns >= self._start_ns
+                               else replace(layout, t_ns=t_ns))
         self._submitted_layout = layout
         self._last_submit_ns = t_ns
         self.resynthesizer.submit(layout)
@@ -297,8 +305,12 @@ class Runtime:
             EventCode.SYNTHESIS_FAILED,
             f"{result.error}; no valid controller, stopping the vessel",
         )
+        self._abort = f"synthesis failed ({result.error}); no controller to go on with"
 
     def _check_stop(self, t_ns: int) -> bool:
+        if self._abort is not None:
+            self._stop(t_ns, EventCode.ABORTED, self._abort)
+            return True
         if self._stop_requested is not None:
             self._stop(t_ns, EventCode.STOPPED, self._stop_requested)
             return True
@@ -312,6 +324,7 @@ class Runtime:
     def _stop(self, t_ns: int, code: EventCode, text: str) -> None:
         self.mode = Mode.STOPPED
         self.stats.end_reason = text
+        self.stats.aborted = code is EventCode.ABORTED
         self._event(
             t_ns, EventLevel.ERROR if code is not EventCode.STOPPED else EventLevel.INFO, code, text
         )
@@ -361,18 +374,27 @@ class Runtime:
             self._at_target(t_ns)
         elif math.isinf(value):
             self.stats.not_winning_decisions += 1
+            state = np.round(eta_hat, 3).tolist()
             self._event(
                 t_ns,
                 EventLevel.ERROR,
                 EventCode.NOT_WINNING,
-                f"state {np.round(eta_hat, 3).tolist()} outside the winning set; stopping",
+                f"state {state} outside the winning set; stopping",
             )
+            where = "outside the grid" if cell < 0 else "outside the winning set"
+            if self.stats.decisions == 0:
+                self._abort = (f"start {state} is {where}: no input is safe from there "
+                               "(too close to an obstacle or a wall, or cut off from the target)")
+            elif self._not_winning_before:
+                self._abort = (f"state {state} still {where} after "
+                               f"{self.config.decision_period_s:g} s stopped: no safe input")
         else:
             indices = controller.safe_input_indices(eta_hat)
             if indices.size:
                 safe = controller.inputs[indices]
                 chosen_index = int(indices[self.select(safe, self._previous_input)])
         chosen = controller.inputs[chosen_index].copy() if chosen_index >= 0 else np.zeros(3)
+        self._not_winning_before = math.isinf(value)
         if value != 0.0 and self.mode is Mode.AT_TARGET:
             self.mode = Mode.RUNNING  # pushed out of the target: steer back in
         self._set_reference(chosen)

@@ -36,6 +36,7 @@ class RunStats:
     target_reached_ns: int | None = None
     docked_ns: int | None = None
     end_reason: str = ""
+    aborted: bool = False
     t_ns: list[int] = field(default_factory=list)
     eta_hat: list[FloatArray] = field(default_factory=list)
     nu_hat: list[FloatArray] = field(default_factory=list)

@@ -21,6 +21,7 @@ from hil.scenarios.scenario import (
     Scenario,
     Target,
     TrackingMargin,
+    check_start,
     hull_footprint,
 )
 
@@ -32,6 +33,7 @@ __all__ = [
     "ScenarioError",
     "Target",
     "TrackingMargin",
+    "check_start",
     "hull_footprint",
     "load_scenario",
     "packaged_scenarios",

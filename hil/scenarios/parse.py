@@ -22,6 +22,7 @@ from hil.scenarios.scenario import (
     Scenario,
     Target,
     TrackingMargin,
+    check_geometry,
     check_sets,
 )
 
@@ -140,6 +141,31 @@ def _heading_cells(grid: dict[str, Any]) -> int:
     return round(2.0 * math.pi / width)
 
 
+_NO_MARGIN_HINT = (
+    "add a [margin] table with surge_mps, sway_mps and yaw_rate_radps (measure them with "
+    "`python3 tools/dev.py bench lowlevel`), or write `[margin]` and `none = true` to "
+    "synthesize without one, as the paper does"
+)
+
+
+def _margin(data: dict[str, Any]) -> TrackingMargin:
+    """Read `[margin]`; a missing table is an error, `none = true` an explicit zero margin."""
+    if "margin" not in data:
+        raise ScenarioError(f"missing key 'margin': {_NO_MARGIN_HINT}")
+    raw = dict(table(data, "margin"))
+    none = raw.pop("none", False)
+    if not isinstance(none, bool):
+        raise ScenarioError(f"key margin.'none' must be true or false, got {none!r}")
+    if none:
+        bounds = sorted(k for k in raw if k != "source")
+        if bounds:
+            raise ScenarioError(f"key margin.'none' = true contradicts margin keys {bounds!r}")
+        return TrackingMargin(source=str(raw.get("source", "none: [margin] none = true")))
+    if not raw:
+        raise ScenarioError(f"key 'margin' is empty: {_NO_MARGIN_HINT}")
+    return from_table(TrackingMargin, raw, "margin.", note=_UNITS)
+
+
 def _parse(data: dict[str, Any], default_name: str) -> Scenario:
     _keys(data, _TOP_KEYS, "")
     state = table(data, "state")
@@ -180,8 +206,7 @@ def _parse(data: dict[str, Any], default_name: str) -> Scenario:
             f"key timing.'tau_s' = {tau!r} must be in (0, 60] s (milliseconds given?)"
         )
 
-    margin = from_table(TrackingMargin, table(data, "margin", required=False), "margin.",
-                        note=_UNITS)
+    margin = _margin(data)
     for key, value in (
         ("surge_mps", margin.surge_mps),
         ("sway_mps", margin.sway_mps),
@@ -238,4 +263,5 @@ def _parse(data: dict[str, Any], default_name: str) -> Scenario:
         target=target,
     )
     check_sets(scenario)
+    check_geometry(scenario)
     return scenario

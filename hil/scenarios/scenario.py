@@ -29,6 +29,7 @@ __all__ = [
     "Scenario",
     "Target",
     "TrackingMargin",
+    "check_geometry",
     "check_sets",
     "hull_footprint",
 ]
@@ -241,4 +242,88 @@ def check_sets(scenario: Scenario) -> None:
             raise ScenarioError(
                 f"key 'target' {scenario.target.shape!r} overlaps "
                 f"obstacles[{n}] ({obstacle.name!r})"
+            )
+
+
+def check_geometry(scenario: Scenario) -> None:
+    """Check a scenario file's layout: obstacles inside the arena, the target reachable.
+
+    Only for the scenario as written: obstacles reported at run time may leave the
+    arena, and whether their layout has a solution is the synthesis' answer.
+
+    Raises:
+        ScenarioError: An obstacle reaches outside the arena, or every point of the
+            abstract target is covered by the walls or the inflated obstacles.
+    """
+    x0, x1 = scenario.x_range_m
+    y0, y1 = scenario.y_range_m
+    tol = 1e-9
+    for n, obstacle in enumerate(scenario.obstacles):
+        v = obstacle.shape.vertices()
+        if (v[:, 0].min() < x0 - tol or v[:, 0].max() > x1 + tol
+                or v[:, 1].min() < y0 - tol or v[:, 1].max() > y1 + tol):
+            raise ScenarioError(
+                f"key obstacles[{n}] ({obstacle.name!r}) {obstacle.shape!r} reaches outside "
+                f"the arena state.x_m {list(scenario.x_range_m)!r}, "
+                f"state.y_m {list(scenario.y_range_m)!r}"
+            )
+    target = scenario.abstract_target()
+    if not _has_free_point(scenario, target):
+        raise ScenarioError(
+            f"key 'target' cannot be reached: its abstract set {target!r} lies inside the "
+            "arena walls or the inflated obstacles (abstraction.obstacle_inflation_m)"
+        )
+
+
+def _point(x_m: float, y_m: float) -> Rect:
+    return Rect(x_m, x_m, y_m, y_m)
+
+
+def _has_free_point(scenario: Scenario, target: Shape, samples: int = 9) -> bool:
+    """Whether some point of `target`, on a samples x samples lattice, is free and in the arena.
+
+    A necessary condition for reaching the target: a point covered by an inflated
+    obstacle is unsafe for the abstraction, so a target entirely covered has no
+    winning cell. (Whether a start can reach it is the synthesis' answer.)
+    """
+    v = target.vertices()
+    inflated = scenario.inflated_obstacles()
+    for x in np.linspace(v[:, 0].min(), v[:, 0].max(), samples):
+        for y in np.linspace(v[:, 1].min(), v[:, 1].max(), samples):
+            p = _point(float(x), float(y))
+            inside = (scenario.x_range_m[0] < x < scenario.x_range_m[1]
+                      and scenario.y_range_m[0] < y < scenario.y_range_m[1])
+            if (inside and convex_distance_m(p, target) == 0.0
+                    and all(convex_distance_m(p, o) > 0.0 for o in inflated)):
+                return True
+    return False
+
+
+def check_start(scenario: Scenario, x_m: float, y_m: float, psi_rad: float) -> None:
+    """Check that a start pose is physically possible: in the arena, clear of every obstacle.
+
+    Whether the controller can dock from there (the winning set) is the synthesis'
+    answer; this only refuses what no controller could fix.
+
+    Raises:
+        ScenarioError: The pose is not finite, the body origin lies outside the arena,
+            or the hull overlaps a real obstacle.
+    """
+    pose = (x_m, y_m, psi_rad)
+    if not all(math.isfinite(v) for v in pose):
+        raise ScenarioError(f"start {pose!r} is not finite")
+    x0, x1 = scenario.x_range_m
+    y0, y1 = scenario.y_range_m
+    if not (x0 <= x_m <= x1 and y0 <= y_m <= y1):
+        raise ScenarioError(
+            f"start ({x_m!r}, {y_m!r}) is outside the arena x {[x0, x1]!r} m, y {[y0, y1]!r} m"
+        )
+    hull = hull_footprint(scenario.hull, x_m, y_m, psi_rad)
+    for obstacle in scenario.obstacles:
+        if convex_distance_m(hull, obstacle.shape) == 0.0:
+            where = "inside" if convex_distance_m(_point(x_m, y_m), obstacle.shape) == 0.0 \
+                else "touching"
+            raise ScenarioError(
+                f"start ({x_m!r}, {y_m!r}, {math.degrees(psi_rad):.1f} deg) puts the hull "
+                f"{where} obstacle {obstacle.name!r} {obstacle.shape!r}"
             )

@@ -55,11 +55,12 @@ def test_synth_prints_a_report_and_json(tmp_path: Path, capsys: pytest.CaptureFi
     )
 
 
-def test_synth_reports_a_layout_without_winning_cells(
+def test_synth_refuses_a_target_covered_by_an_inflated_obstacle(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     text = COARSE.read_text(encoding="utf-8")
-    # A wall right of the target, inflated over all of it.
+    # A wall right of the target, inflated over all of it: no cell of it can be winning,
+    # which the scenario check says before any synthesis (issue 12).
     text += (
         '\n[[obstacles]]\nname = "W"\nx_m = [-1.95, -1.9]\ny_m = [0.75, 2.25]\ninflation_m = 1.6\n'
     )
@@ -67,9 +68,9 @@ def test_synth_reports_a_layout_without_winning_cells(
     path.write_text(text, encoding="utf-8")
     status = main(["synth", str(path), "--json", "--cache-dir", str(tmp_path), "--repeat", "1"])
     captured = capsys.readouterr()
-    assert status == 1
-    assert "no winning cell" in captured.err
-    assert json.loads(captured.out.strip().splitlines()[-1])["winning_cells"] == 0
+    assert status == 2
+    assert "'target' cannot be reached" in captured.err
+    assert captured.out == ""
 
 
 def test_synth_refuses_a_bad_scenario(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

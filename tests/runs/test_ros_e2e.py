@@ -22,6 +22,8 @@ from hil.bag.reader import BagReader
 from hil.core.records import Event
 from hil.core.samples import ThrusterCommand
 
+NS_PER_S = 1_000_000_000
+
 pytest.importorskip("rclpy")
 pytestmark = pytest.mark.ros
 
@@ -102,6 +104,10 @@ resynthesis_period_s = 20.0
         info = reader.info
         counts = {t.name: t.message_count for t in info.topics}
     assert counts["/hil/decision"] == summary["decisions"]
+    # One clock: the bag spans the run (and the poses queued just before its first tick),
+    # not the /clock time before the stack joined.
+    assert info.duration_ns / 1e9 < summary["duration_s"] + 2.0
+    assert "waiting for pose on /voyager/measurement/pose" in stderr
     assert counts["/voyager/measurement/pose"] > 1000
     assert info.run is not None
     assert info.run.backend == "ros"
@@ -143,8 +149,14 @@ domain_id = {domain}
             stack.wait()
         _stop(vessel)
     assert stack.returncode in (0, 1), stderr[-3000:]
+    assert "stopped: stopped by SIGTERM" in stderr
     with BagReader(out) as reader:
         records = list(reader.records(["/hil/events", "/hil/thrusters"]))
+        info = reader.info
+    # Wall time: every topic on the epoch clock, the span seconds, not decades.
+    assert info.start_ns is not None
+    assert info.start_ns > 1_000_000_000 * NS_PER_S
+    assert info.duration_ns < 120 * NS_PER_S
     codes = [r.code for _, _, r in records if isinstance(r, Event)]
     assert codes[-1] == "stopped"
     commands = [r for _, _, r in records if isinstance(r, ThrusterCommand)]

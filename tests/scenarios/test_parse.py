@@ -55,6 +55,16 @@ def _edit(path: list[str], value: Any) -> dict[str, Any]:
         (["target", "x_m"], [10.0, 11.0], r"'target' .* lies outside the state bounds"),
         (["obstacles"], {"x_m": 1}, r"'obstacles' must be an array of tables"),
         (["hull", "length_m"], -1.0, r"'hull' must have positive sizes"),
+        (["margin"], KeyError, r"missing key 'margin': .*`none = true`"),
+        (["margin"], {}, r"key 'margin' is empty: .*`none = true`"),
+        (["margin"], {"none": True, "sway_mps": 0.1}, r"'none' = true contradicts .*sway_mps"),
+        (["margin"], {"none": "yes"}, r"margin.'none' must be true or false, got 'yes'"),
+        (["obstacles", "0", "x_m"], [4.0, 5.0], r"obstacles\[0\] \('O1'\) .* outside the arena"),
+        (
+            ["abstraction", "obstacle_inflation_m"],
+            3.0,
+            r"'target' cannot be reached: .* inflated obstacles",
+        ),
     ],
 )
 def test_bad_scenarios_name_the_key(path: list[str], value: Any, match: str) -> None:
@@ -88,3 +98,9 @@ def test_rotated_and_polygon_obstacles_parse() -> None:
         ScenarioError, match=r"obstacles\[0\].'vertices_m' is not a convex counter-clockwise"
     ):
         parse_scenario(data)
+
+
+def test_margin_none_is_an_explicit_zero_margin() -> None:
+    s = parse_scenario(_edit(["margin"], {"none": True}))
+    assert s.margin.as_array().tolist() == [0.0, 0.0, 0.0]
+    assert "none = true" in s.margin.source
