@@ -104,9 +104,10 @@ resynthesis_period_s = 20.0
         info = reader.info
         counts = {t.name: t.message_count for t in info.topics}
     assert counts["/hil/decision"] == summary["decisions"]
-    # One clock: the bag spans the run (and the poses queued just before its first tick),
-    # not the /clock time before the stack joined.
-    assert info.duration_ns / 1e9 < summary["duration_s"] + 2.0
+    # One clock: the bag spans the run and the poses recorded while the stack set up
+    # (synthesis; seconds of /clock at speed 2, more on a loaded CI machine), not the
+    # /clock time before the stack joined (that bug made a 42-s run span 151 s).
+    assert info.duration_ns / 1e9 < summary["duration_s"] + 30.0
     assert "waiting for pose on /voyager/measurement/pose" in stderr
     assert counts["/voyager/measurement/pose"] > 1000
     assert info.run is not None
