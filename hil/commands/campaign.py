@@ -24,7 +24,7 @@ if TYPE_CHECKING:
 
     from hil.runs.campaign import CampaignRun
 
-from hil.commands.common import positive_seconds
+from hil.commands.common import EXIT_STOPPED, positive_seconds
 
 HELP = "run many simulated dockings from random starts in parallel and compare with the paper"
 
@@ -82,7 +82,11 @@ def _guarantee_rows(table: Table, groups: list[list[CampaignRun]]) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the campaign; exit 0 when every run docked without contact, else 1; 2 on bad input."""
+    """Run the campaign; return the exit status.
+
+    0 every run docked without contact, 1 otherwise, 2 bad input, 130 stopped by Ctrl-C
+    (the finished runs are still reported, table and JSON).
+    """
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn
     from rich.table import Table
@@ -122,14 +126,20 @@ def run(args: argparse.Namespace) -> int:
     with Progress("[progress.description]{task.description}", BarColumn(), MofNCompleteColumn(),
                   TimeElapsedColumn(), console=console) as progress:
         task = progress.add_task(f"{scenario.name}: docking runs", total=len(specs))
-        results = run_campaign(specs, args.workers, lambda _r: progress.advance(task))
+        outcome = run_campaign(specs, args.workers, lambda _r: progress.advance(task))
+    results, specs = outcome.runs, outcome.specs
+    if not results:
+        print("hil campaign: stopped before any run finished", file=sys.stderr)
+        return EXIT_STOPPED
     groups = [results,
               [r for r, s in zip(results, specs, strict=True) if s.start_velocity is None],
               [r for r, s in zip(results, specs, strict=True) if s.start_velocity is not None]]
     all_stats = [CampaignStats.of([summary for summary, _ in g]) for g in groups]
     stats = all_stats[0]
+    stopped = (f", STOPPED after {len(results)} of {outcome.planned} runs"
+               if outcome.stopped else "")
     table = Table(title=f"campaign: {scenario.name}, {stats.runs} runs "
-                        f"({discarded} non-winning starts redrawn)")
+                        f"({discarded} non-winning starts redrawn){stopped}")
     table.add_column("measure")
     for name in ("all", "at rest", "moving"):
         table.add_column(f"hil (sim), {name}", justify="right")
@@ -164,5 +174,10 @@ def run(args: argparse.Namespace) -> int:
                           "guarantee_moving": asdict(
                               GuaranteeViolations.total(g for _, g in groups[2])),
                           "runs_with_violations": sum(g.violations > 0 for _, g in results),
+                          "planned_runs": outcome.planned, "stopped": outcome.stopped,
                           "per_run": runs}))
+    if outcome.stopped:
+        print(f"hil campaign: stopped after {len(results)} of {outcome.planned} runs; the "
+              "figures above are the finished runs", file=sys.stderr)
+        return EXIT_STOPPED
     return 0 if stats.docked == stats.runs and stats.contacts == 0 else 1

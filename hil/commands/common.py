@@ -22,6 +22,9 @@ EXIT_DOCKED = 0
 EXIT_NOT_DOCKED = 1
 EXIT_BAD_INPUT = 2
 EXIT_ABORTED = 3
+EXIT_STOPPED = 130
+"""A campaign stopped by Ctrl-C (128 + SIGINT, the shell's convention); its finished runs
+are still reported."""
 
 # A value such as "-1,-2,0": argparse takes it for an option unless written with "=".
 _NUMBER_LIST = re.compile(r"^-\d*\.?\d+(e[-+]?\d+)?(,[-+]?\d*\.?\d*(e[-+]?\d+)?)+$", re.I)

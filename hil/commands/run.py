@@ -66,8 +66,9 @@ def _live_rerun(target: str) -> LiveView:
 def run(args: argparse.Namespace) -> int:
     """Run, print the summary; exit status as in :mod:`hil.commands.common`.
 
-    0 docked, 1 not docked (time limit), 2 bad input (before anything ran), 3 aborted
-    (synthesis failed, or the start has no safe input).
+    0 docked, 1 not docked (time limit, or stopped by SIGINT/SIGTERM: the loop stops at
+    its next tick, zero thrust, the log complete and named on the console), 2 bad input
+    (before anything ran), 3 aborted (synthesis failed, or the start has no safe input).
     """
     from rich.console import Console
 
@@ -98,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
     live = None if args.rerun is None else _live_rerun(args.rerun)
     try:
         with console.status(f"docking in the {name} scenario (seed {args.seed})..."):
-            summary = run_in_sim(spec, live=live)
+            summary = run_in_sim(spec, live=live, handle_signals=True)
     except (ScenarioError, SymbolicError, ReplayError, ValueError) as err:
         print(f"hil run: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -107,8 +108,11 @@ def run(args: argparse.Namespace) -> int:
               "use a coarser [grid] cell_m or fewer heading_cells", file=sys.stderr)
         return EXIT_BAD_INPUT
     summary.render(console)
+    where = f"log: {summary.log or 'not recorded'}"
     if summary.aborted:
-        print(f"hil run: aborted: {summary.end_reason} (log: {summary.log or 'not recorded'})",
+        print(f"hil run: aborted: {summary.end_reason} ({where})", file=sys.stderr)
+    elif summary.end_reason.startswith("stopped by"):
+        print(f"hil run: {summary.end_reason}; the run is recorded up to the stop ({where})",
               file=sys.stderr)
     if args.json:
         print(summary.to_json())

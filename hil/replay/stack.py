@@ -18,6 +18,7 @@ from hil.adapters.interfaces import ThrusterSinkError
 from hil.adapters.log import LogWorld, thruster_failures_ns
 from hil.bag.run_data import RunData, Series
 from hil.core.geometry import wrap_angles
+from hil.core.records import Event
 from hil.core.samples import ThrusterCommand
 from hil.core.tracking import tracking_error
 from hil.replay.controllers import ControllerCache
@@ -26,6 +27,7 @@ from hil.replay.options import ReplayOptions
 from hil.replay.regression import Check, Finding, Status, time_s
 from hil.replay.tracking_checks import tracking_findings
 from hil.runs.sim_run import build_runtime
+from hil.runtime.events import EventCode
 from hil.runtime.loop import Mode, World
 from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer
 from hil.runtime.settings import LoopConfig
@@ -44,6 +46,11 @@ def tick_times(run: RunData) -> IntArray:
     """
     failures = np.array(sorted(thruster_failures_ns(run)), dtype=np.int64)
     return np.unique(np.concatenate([run.thrusters.t_ns, failures]))
+
+
+def recorded_stop(run: RunData) -> Event | None:
+    """Return the run's first ``stopped`` event (a stop requested from outside), if any."""
+    return next((e for e in run.events if e.code == EventCode.STOPPED.value), None)
 
 
 def _infer_loop(run: RunData) -> LoopConfig:
@@ -123,10 +130,15 @@ def check_stack(run: RunData, controllers: ControllerCache, options: ReplayOptio
     )
     # The same composition, with the cached solver: identical controllers, one synthesis.
     runtime.resynthesizer = Resynthesizer(controllers, ResynthesisMode.INLINE)
+    # A stop from outside (SIGINT/SIGTERM on the vessel or at `hil run`) is part of the
+    # recording, not of the stack: it is requested again at the tick that recorded it.
+    stop = recorded_stop(run)
     # Tick when the recording ticked (every tick sends a command or logs its failure):
     # the sim's fixed period, or a vessel's wall-clock ticks with their jitter.
     for t_ns in tick_times(run):
         world.clock.sleep_until(int(t_ns))
+        if stop is not None and t_ns >= stop.t_ns and runtime.mode is not Mode.STOPPED:
+            runtime.request_stop(stop.text)
         if runtime.mode in (Mode.DOCKED, Mode.STOPPED):
             # Runtime.run() zeroes the thrusters once on its way out, at the next tick.
             with contextlib.suppress(ThrusterSinkError):
@@ -185,10 +197,12 @@ def check_stack(run: RunData, controllers: ControllerCache, options: ReplayOptio
             tuple(findings),
             metrics,
         )
+    interrupted = "" if stop is None else f"; interrupted at {time_s(stop.t_ns)} ({stop.text})"
     return Check(
         "stack",
         Status.PASS,
-        f"{len(est_t)} ticks, {stats.decisions} decisions and {len(cmd_t)} commands reproduced",
+        f"{len(est_t)} ticks, {stats.decisions} decisions and {len(cmd_t)} commands "
+        f"reproduced{interrupted}",
         (),
         metrics,
     )

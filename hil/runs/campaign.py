@@ -9,8 +9,10 @@ their initial body velocity is drawn uniformly in the scenario's input box.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import multiprocessing
+import signal
 from collections.abc import Callable, Iterable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, replace
@@ -110,27 +112,69 @@ CampaignRun = tuple[RunSummary, GuaranteeViolations]
 """One run of a campaign: its summary and its guarantee violations on the true state."""
 
 
+@dataclass(frozen=True, slots=True)
+class CampaignResult:
+    """The finished runs of a campaign, complete or stopped.
+
+    Attributes:
+        runs: Each finished run, in spec order.
+        specs: The spec of each finished run, same order.
+        planned: How many runs were asked for.
+    """
+
+    runs: list[CampaignRun]
+    specs: list[SimRunSpec]
+    planned: int
+
+    @property
+    def stopped(self) -> bool:
+        """Whether the campaign was stopped before every run finished."""
+        return len(self.runs) < self.planned
+
+
+def _ignore_sigint() -> None:
+    """Worker initializer: Ctrl-C is the parent's to handle (it lets running runs finish)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def run_campaign(specs: list[SimRunSpec], workers: int,
-                 progress: Callable[[CampaignRun], None] | None = None) -> list[CampaignRun]:
-    """Run and judge every spec, `workers` processes at a time; results in spec order."""
+                 progress: Callable[[CampaignRun], None] | None = None) -> CampaignResult:
+    """Run and judge every spec, `workers` processes at a time.
+
+    Ctrl-C (KeyboardInterrupt) stops the campaign without losing what it did: no new run
+    starts, the runs already going finish, and the result holds every finished run (a
+    second Ctrl-C while they finish gives up on them).
+    """
     results: list[CampaignRun | None] = [None] * len(specs)
     if workers <= 1:
-        for i, spec in enumerate(specs):
-            results[i] = judged_run(spec)
-            if progress is not None:
-                progress(results[i])  # type: ignore[arg-type]
+        with contextlib.suppress(KeyboardInterrupt):
+            for i, spec in enumerate(specs):
+                results[i] = judged_run(spec)
+                if progress is not None:
+                    progress(results[i])  # type: ignore[arg-type]
     else:
         # Spawn, not fork: the parent has run numba's threaded kernels, and a forked
         # child of a threaded process may crash in the threading layer.
         context = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
-            futures = {pool.submit(judged_run, spec): i for i, spec in enumerate(specs)}
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=context,
+                                   initializer=_ignore_sigint)
+        futures = {pool.submit(judged_run, spec): i for i, spec in enumerate(specs)}
+        try:
             for future in as_completed(futures):
                 result = future.result()
                 results[futures[future]] = result
                 if progress is not None:
                     progress(result)
-    return [r for r in results if r is not None]
+        except KeyboardInterrupt:
+            pool.shutdown(wait=True, cancel_futures=True)
+            for future, i in futures.items():
+                if future.done() and not future.cancelled() and future.exception() is None:
+                    results[i] = future.result()
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
+    done = [i for i, r in enumerate(results) if r is not None]
+    return CampaignResult([results[i] for i in done], [specs[i] for i in done],  # type: ignore[misc]
+                          len(specs))
 
 
 @dataclass(frozen=True, slots=True)

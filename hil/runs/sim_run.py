@@ -39,6 +39,7 @@ from hil.runtime.assembly import (
 from hil.runtime.loop import Runtime, World
 from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer
 from hil.runtime.settings import LoopConfig
+from hil.runtime.signals import stop_on_signals
 from hil.runtime.stack import RunLog, SymbolicController
 from hil.runtime.stats import RunStats
 from hil.runtime.trace import MemoryLog
@@ -183,7 +184,8 @@ class SimOutcome:
 
 
 def run_in_sim(
-    spec: SimRunSpec, log: RunLog | None = None, live: LiveView | None = None
+    spec: SimRunSpec, log: RunLog | None = None, live: LiveView | None = None, *,
+    handle_signals: bool = False,
 ) -> RunSummary:
     """Run one docking in simulation and summarize it (see module docstring).
 
@@ -192,13 +194,15 @@ def run_in_sim(
         log: Where to record when `spec.out_dir` is None (default: a fresh MemoryLog).
         live: Wraps the log for a live view (the views layer provides Rerun's); None
             shows nothing.
+        handle_signals: Route SIGINT/SIGTERM to a clean stop at the next tick (the run
+            then ends "stopped by SIGINT" with a complete log) instead of an exception.
     """
-    return simulate(spec, log, live).summary
+    return simulate(spec, log, live, handle_signals=handle_signals).summary
 
 
 def simulate(
     spec: SimRunSpec, log: RunLog | None = None, live: LiveView | None = None,
-    select: Select = select_index,
+    select: Select = select_index, *, handle_signals: bool = False,
 ) -> SimOutcome:
     """Run one docking in simulation; return its summary, world and controllers.
 
@@ -207,6 +211,7 @@ def simulate(
         log: Where to record when `spec.out_dir` is None (default: a fresh MemoryLog).
         live: Wraps the log for a live view; None shows nothing.
         select: Choice among the safe inputs (tests force choices with it).
+        handle_signals: Route SIGINT/SIGTERM to a clean stop at the next tick.
     """
     wall_start = time.perf_counter()
     scenario = load_scenario(spec.scenario)
@@ -240,7 +245,11 @@ def simulate(
             scenario, world, log, spec.loop, synthesizer, ResynthesisMode.INLINE,
             select=select, solver=solver,
             start_nu=None if spec.start_velocity is None else np.array(spec.start_velocity))
-        stats = runtime.run()
+        if handle_signals:
+            with stop_on_signals(runtime.request_stop):
+                stats = runtime.run()
+        else:
+            stats = runtime.run()
     finally:
         if recorder is not None:
             recorder.close()

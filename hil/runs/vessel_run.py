@@ -7,14 +7,12 @@ so a run interrupted on the tank still leaves a complete bag.
 
 from __future__ import annotations
 
-import signal
 import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import FrameType
 
 import numpy as np
 
@@ -30,6 +28,7 @@ from hil.runtime.assembly import layout_from_scenario, warm_up_kernels
 from hil.runtime.loop import Mode, Runtime, World
 from hil.runtime.resynthesis import ResynthesisMode
 from hil.runtime.settings import LoopConfig
+from hil.runtime.signals import stop_on_signals
 from hil.scenarios import load_scenario
 
 
@@ -101,26 +100,13 @@ def _status_every(period_s: float, runtime: Runtime, progress: Progress) -> Iter
         thread.join(timeout=1.0)
 
 
-@contextmanager
-def _stop_on_signals(stop: Callable[[str], None]) -> Iterator[None]:
-    """Route SIGINT and SIGTERM to `stop(reason)` while inside the block."""
-    def handler(signum: int, _frame: FrameType | None) -> None:
-        stop(f"stopped by {signal.Signals(signum).name}")
-
-    previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        yield
-    finally:
-        for s, h in previous.items():
-            signal.signal(s, h)
-
 
 def _wait_for_pose(ros: RosWorld, topic: str, progress: Progress) -> str | None:
     """Block until the first pose arrives; return why it stopped waiting (a signal), or None."""
     stopped: list[str] = []
     progress(f"waiting for pose on {topic} (ROS domain {ros.domain_id})...")
     waited_s = 0.0
-    with _stop_on_signals(stopped.append):
+    with stop_on_signals(stopped.append):
         while not stopped and not ros.pose_source.wait_first(0.1):
             waited_s += 0.1
             if waited_s >= STATUS_PERIOD_S:
@@ -172,7 +158,7 @@ def run_on_ros(config: VesselConfig, out_dir: Path | None = None,
                 runtime.request_stop(f"{stopped} while waiting for pose")
             else:
                 progress(f"running: recording to {out_dir}")
-            with _stop_on_signals(runtime.request_stop), \
+            with stop_on_signals(runtime.request_stop), \
                     _status_every(STATUS_PERIOD_S, runtime, progress):
                 stats = runtime.run()
         finally:

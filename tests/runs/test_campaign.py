@@ -1,4 +1,5 @@
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -105,3 +106,35 @@ def test_moving_starts_are_seeded_in_the_input_box_and_leave_the_starts_alone() 
     assert [s.start_velocity for s in specs] == velocities[:4]
     with pytest.raises(ValueError, match="velocities for"):
         campaign_specs(SimRunSpec(scenario="coarse"), [(3.0, 0.0, 0.0)], velocities=[])
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_stopped_campaign_keeps_its_finished_runs(workers: int) -> None:
+    import os
+    import signal
+
+    from hil.runs.campaign import CampaignRun, run_campaign
+    from hil.runtime.settings import LoopConfig
+
+    base = SimRunSpec(scenario="coarse", loop=LoopConfig(resynthesis_period_s=None,
+                                                         max_duration_s=20.0))
+    # Ten runs for two workers: at Ctrl-C at most two are running and one queued.
+    starts = [(3.75, -1.5 + 0.2 * i, math.pi / 2) for i in range(10)]
+    specs = [replace(base, seed=i, start=s) for i, s in enumerate(starts)]
+    seen: list[CampaignRun] = []
+
+    def ctrl_c_after_the_first(run: CampaignRun) -> None:
+        seen.append(run)
+        if len(seen) == 1:
+            os.kill(os.getpid(), signal.SIGINT)  # what Ctrl-C in the terminal sends
+
+    outcome = run_campaign(specs, workers, ctrl_c_after_the_first)
+    assert outcome.stopped
+    assert outcome.planned == 10
+    # Nothing finished is lost: the first run, and any that were running with it.
+    assert 1 <= len(outcome.runs) < 10
+    assert len(outcome.specs) == len(outcome.runs)
+    assert all(spec in specs for spec in outcome.specs)
+    assert outcome.runs[0] == seen[0] or seen[0] in outcome.runs
+    for summary, _ in outcome.runs:
+        assert summary.duration_s > 0
