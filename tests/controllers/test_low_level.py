@@ -1,4 +1,4 @@
-"""Tests of the low-level tick: its plain twin (PID class + allocator class), state, bad input."""
+"""Tests of the low-level tick: its plain twin (PID, allocator and thruster classes), state."""
 
 from __future__ import annotations
 
@@ -13,13 +13,15 @@ from hil.controllers.allocation import (
     PseudoInverseAllocator,
 )
 from hil.controllers.low_level import (
-    L_HOLD,
+    L_A_PRED,
     L_THETA,
+    L_U_PRED,
     AllocatorKind,
     LowLevelController,
     LowLevelParams,
 )
 from hil.controllers.pid import NonFiniteInputError, VelocityPid
+from hil.model.thrusters import Thrusters, ThrusterState, throttle_for_slew
 
 F = NDArray[np.float64]
 
@@ -34,9 +36,12 @@ def reference_sequence(n: int, seed: int) -> tuple[F, F]:
 
 @pytest.mark.parametrize("kind", list(AllocatorKind))
 def test_tick_equals_pid_and_allocator_classes(kind: AllocatorKind) -> None:
-    # The twin: the PID's command, the allocator from its own last angles, the PID's
-    # integrator fed the allocator's achieved force (what the runtime ran before).
+    # The twin: the PID's command, the allocator from the pods' angles, the thrusters
+    # moved toward the commands over the tick (their own class: rate limits, slew, the
+    # throttle while turning), the PID's integrator fed the force they then deliver.
     params = LowLevelParams(allocator=kind)
+    thrusters = Thrusters(params.thrusters)
+    reached = ThrusterState(np.zeros(3), np.asarray(params.mma.reference_angles_rad, float))
     low = LowLevelController(params)
     pid = VelocityPid(dt_s=params.dt_s)
     alloc = (
@@ -46,21 +51,32 @@ def test_tick_equals_pid_and_allocator_classes(kind: AllocatorKind) -> None:
     )
     refs, est = reference_sequence(200, 4)
     saturated = 0
+    lagging = 0
     for nu_ref, nu_hat in zip(refs, est, strict=True):
         out = low.tick(nu_ref, nu_hat)
         p = pid.command(nu_ref, nu_hat)
-        r = alloc.allocate(p.tau_n)
-        pid.update(nu_ref, nu_hat, p, r.achieved_n)
+        r = alloc.allocate(p.tau_n, reached.angles_rad)
+        setpoint = ThrusterState(
+            throttle_for_slew(r.commands, r.angles_rad, reached.angles_rad), r.angles_rad
+        )
+        reached = thrusters.step(reached, setpoint, params.dt_s)
+        delivered = thrusters.force(reached)
+        pid.update(nu_ref, nu_hat, p, delivered)
         np.testing.assert_allclose(out.tau_n, p.tau_n, atol=1e-12, rtol=0)
         np.testing.assert_allclose(out.commands, r.commands, atol=1e-12, rtol=0)
         np.testing.assert_allclose(out.angles_rad, r.angles_rad, atol=1e-12, rtol=0)
-        np.testing.assert_allclose(out.achieved_n, r.achieved_n, atol=1e-12, rtol=0)
+        np.testing.assert_allclose(out.achieved_n, delivered, atol=1e-12, rtol=0)
         np.testing.assert_allclose(low.state[0:3], pid.integrator, atol=1e-12, rtol=0)
-        np.testing.assert_array_equal(low.state[L_HOLD : L_HOLD + 2], out.angles_rad)
+        np.testing.assert_allclose(low.state[L_U_PRED : L_U_PRED + 3], reached.commands,
+                                   atol=1e-12, rtol=0)
+        np.testing.assert_allclose(low.state[L_A_PRED : L_A_PRED + 2], reached.angles_rad,
+                                   atol=1e-12, rtol=0)
         if isinstance(alloc, MinimumMagnitudeAzimuthAllocator):
             np.testing.assert_allclose(low.state[L_THETA : L_THETA + 2], alloc.theta, atol=1e-12)
-        saturated += int(np.max(np.abs(out.achieved_n - out.tau_n)) > 1e-6)
+        saturated += int(np.max(np.abs(r.achieved_n - out.tau_n)) > 1e-6)
+        lagging += int(np.max(np.abs(delivered - r.achieved_n)) > 1e-6)
     assert saturated > 10  # the sequence exercised the saturated branch
+    assert lagging > 10  # ... and thrust still ramping toward the commands
 
 
 def test_reset_returns_to_rest() -> None:
@@ -73,7 +89,7 @@ def test_reset_returns_to_rest() -> None:
     np.testing.assert_array_equal(low.state, params.initial_state())
     again = low.tick(np.array([0.3, 0.1, 0.2]), np.zeros(3))
     np.testing.assert_array_equal(again.commands, first.commands)
-    np.testing.assert_array_equal(params.initial_state()[L_HOLD : L_HOLD + 2],
+    np.testing.assert_array_equal(params.initial_state()[L_A_PRED : L_A_PRED + 2],
                                   params.mma.reference_angles_rad)
 
 
