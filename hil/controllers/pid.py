@@ -155,11 +155,10 @@ class PidGains:
 
 DEFAULT_GAINS = PidGains()
 """Gains tuned on the simulated vessel. Under the vessel's low level
-(:mod:`hil.controllers.low_level`, true velocity fed back) single-axis grid steps of
-0.1 m/s and 0.2 rad/s settle to 5 % within 1.2 s with under 4 % overshoot; the
-smallest steps (0.05 m/s, 0.1 rad/s) overshoot by up to 9.5 % because the integrator
-grows while the thrust ramps at its rate limit (tests/controllers/test_pid.py,
-bench/lowlevel.py)."""
+(:mod:`hil.controllers.low_level`, true velocity fed back) single-axis grid steps settle
+to 5 % by 1.5 s with under 5 % overshoot (tests/controllers/test_pid.py); the anti-windup
+sees the thrust the thrusters deliver while it ramps, without which the smallest steps
+overshot by 9.5 % (bench/lowlevel.py)."""
 
 
 @njit

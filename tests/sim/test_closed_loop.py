@@ -131,7 +131,7 @@ def test_tracks_references(allocator: AllocatorKind) -> None:
     # Mostly the unavoidable transient after each step (bench/lowlevel.py bounds it).
     assert np.all(err < np.array([0.025, 0.025, 0.05]))
     late = settled(res)
-    assert np.all(np.abs(late) < np.array([0.01, 0.01, 0.01]))
+    assert np.all(np.abs(late) < np.array([0.008, 0.008, 0.008]))
 
 
 def settled(res: ClosedLoopResult) -> F:
@@ -150,7 +150,7 @@ def test_integral_action_rejects_constant_load() -> None:
 
 def test_pid_every_physics_step() -> None:
     res = simulate_closed_loop(REFS, LowLevelConfig(control_period_s=0.01))
-    assert np.all(np.abs(settled(res)) < np.array([0.01, 0.01, 0.01]))
+    assert np.all(np.abs(settled(res)) < np.array([0.008, 0.008, 0.008]))
 
 
 @pytest.mark.parametrize(
