@@ -218,7 +218,6 @@ def euler_advance(
         nu_dot: Its derivative at (nu, force), shape (3,).
         dt: Step (s).
     """
-    a = nu_dot
     xd, yd = _eta_rate(eta[2], nu)
     eta_new = np.empty(3)
     eta_new[0] = eta[0] + dt * xd
@@ -226,7 +225,7 @@ def euler_advance(
     eta_new[2] = wrap_angle(eta[2] + dt * nu[2])
     nu_new = np.empty(3)
     for i in range(3):
-        nu_new[i] = nu[i] + dt * a[i]
+        nu_new[i] = nu[i] + dt * nu_dot[i]
     return eta_new, nu_new
 
 

@@ -166,15 +166,15 @@ def run_campaign(specs: list[SimRunSpec], workers: int,
                 if progress is not None:
                     progress(result)
         except KeyboardInterrupt:
-            pool.shutdown(wait=True, cancel_futures=True)
-            for future, i in futures.items():
-                if future.done() and not future.cancelled() and future.exception() is None:
-                    results[i] = future.result()
+            pass  # no new run starts; the shutdown below lets the running ones finish
         finally:
             pool.shutdown(wait=True, cancel_futures=True)
-    done = [i for i, r in enumerate(results) if r is not None]
-    return CampaignResult([results[i] for i in done], [specs[i] for i in done],  # type: ignore[misc]
-                          len(specs))
+        for future, i in futures.items():
+            if results[i] is None and future.done() and not future.cancelled() \
+                    and future.exception() is None:
+                results[i] = future.result()
+    finished = [(spec, r) for spec, r in zip(specs, results, strict=True) if r is not None]
+    return CampaignResult([r for _, r in finished], [spec for spec, _ in finished], len(specs))
 
 
 @dataclass(frozen=True, slots=True)

@@ -14,6 +14,7 @@ import json
 import math
 import time
 from collections.abc import Callable
+from contextlib import nullcontext
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -245,10 +246,8 @@ def simulate(
             scenario, world, log, spec.loop, synthesizer, ResynthesisMode.INLINE,
             select=select, solver=solver,
             start_nu=None if spec.start_velocity is None else np.array(spec.start_velocity))
-        if handle_signals:
-            with stop_on_signals(runtime.request_stop):
-                stats = runtime.run()
-        else:
+        signals = stop_on_signals(runtime.request_stop) if handle_signals else nullcontext()
+        with signals:
             stats = runtime.run()
     finally:
         if recorder is not None:

@@ -242,9 +242,8 @@ def closed_loop_kernel(
     pose_buf = np.zeros(3)
     for k in range(n):
         nu_ref = refs[k // steps_per_ref]
-        # Contiguous copies: the sensor kernels run faster on them than on views.
-        eta = plant[P_ETA : P_ETA + 3].copy()
-        nu = plant[P_NU : P_NU + 3].copy()
+        eta = plant[P_ETA : P_ETA + 3]
+        nu = plant[P_NU : P_NU + 3]
         if use_observer:
             # Sensors see the state at t_k; the accelerometer the force of the last step.
             nu_dot = acceleration(m_inv, coef, nu, tau + b_env[max(k - 1, 0)])
