@@ -27,6 +27,7 @@ from hil.controllers.symbolic.errors import (
     SymbolicError,
 )
 from hil.controllers.symbolic.grid import Grid, obstacle_mask, target_mask
+from hil.controllers.symbolic.hull import free_masks, hull_half_extents, target_cells
 from hil.controllers.symbolic.problem import SymbolicProblem
 from hil.controllers.symbolic.selection import cost, select
 from hil.controllers.symbolic.synthesis import Synthesizer, synthesize
@@ -48,9 +49,12 @@ __all__ = [
     "cells_of",
     "cost",
     "default_cache_dir",
+    "free_masks",
+    "hull_half_extents",
     "obstacle_mask",
     "select",
     "synthesize",
     "tables_for",
+    "target_cells",
     "target_mask",
 ]
