@@ -17,6 +17,12 @@ each 2-s window after 1 s), which the symbolic layer's robustness margin can use
 scenario's ``[margin]`` is its maximum, rounded up, printed as a TOML table
 (:mod:`hil.sim.margin` holds the recipe; a test checks the packaged scenarios ship it).
 
+Transient budget: the scenario's ``[transient]`` (:mod:`hil.sim.transient`): the error
+per period class (hold, change), 0.25-s bin and axis over the whole period, measured on
+references that move at most one grid step per axis and period (Euler tours of every
+(p, u) pair, walks, ramps, starts already moving), x1.2 and rounded up; with the worst
+measured deviation from the exact arc over the bound it implies, and the EKF's error.
+
 Speed: a 3-minute run (100 Hz physics, sensors + EKF + PID + allocation + vessel) in
 the compiled loop, against the same loop run by the Python interpreter
 (NUMBA_DISABLE_JIT=1 in a subprocess) over a short span, extrapolated. Both in CPU
@@ -59,6 +65,7 @@ from hil.sim.margin import (
     random_walk_refs,
     settled_error,
 )
+from hil.sim.transient import DIGITS, TransientRecipe, derive_transient, toml_table
 
 F = NDArray[np.float64]
 
@@ -323,6 +330,48 @@ def main(argv: list[str] | None = None) -> int:
     print(f"  sway_mps = {margin[1]:.{MARGIN_DIGITS}f}")
     print(f"  yaw_rate_radps = {margin[2]:.{MARGIN_DIGITS}f}")
 
+    # ---- transient budget (the scenario's [transient]) ----
+    recipe_t = TransientRecipe()
+    derivation = derive_transient(load_scenario("paper"), recipe_t, cfg)
+    budget = derivation.budget
+    print(
+        "\ntransient: max |nu - nu_ref| per period class and bin, whole period (default "
+        "config, SI: m/s, m/s, rad/s)"
+    )
+    print(
+        f"  {derivation.periods[0]} hold and {derivation.periods[1]} change periods, "
+        f"{derivation.simulated_s:.0f} s simulated, derived in {derivation.seconds:.1f} s "
+        "(wall, one core)"
+    )
+    edges = [j * budget.bin_s for j in range(budget.n_bins + 1)]
+    bin_header = "".join(f"{f'{a:g}-{b:g} s':>10}" for a, b in itertools.pairwise(edges))
+    print(f"  {'':<14}{bin_header}")
+    for cls, cls_name in ((0, "hold"), (1, "change")):
+        for axis, axis_name in enumerate(("surge", "sway", "yaw rate")):
+            cells = "".join(f"{v:>10.4f}" for v in derivation.envelopes[cls, :, axis])
+            print(f"  {cls_name + ' ' + axis_name:<14}{cells}")
+    print(
+        f"  EKF error after {recipe_t.estimation_after_s:g} s: position "
+        f"{derivation.estimation[0]:.4f} m, heading {derivation.estimation[1]:.4f} rad"
+    )
+    ratios = derivation.ratios
+    print(
+        "  deviation from the exact arc of the reference, started at the true pose, over the "
+        "bound\n  the budget implies (same runs; < 1 inside):"
+    )
+    for cls, cls_name in ((0, "hold"), (1, "change")):
+        print(
+            f"    {cls_name:<7} position {ratios.position[cls]:.3f} "
+            f"(worst {ratios.position_m[cls]:.4f} m), heading {ratios.heading[cls]:.3f} "
+            f"(worst {ratios.heading_rad[cls]:.4f} rad)"
+        )
+    print(f"    worst ratio {ratios.worst:.3f}")
+    print(
+        f"\nscenario transient budget this measures (max above x{recipe_t.safety_factor:g}, "
+        f"rounded up to {DIGITS} decimals):"
+    )
+    print("\n".join(f"  {line}" for line in toml_table(budget).splitlines()))
+
     # ---- speed ----
     long_refs = random_walk_refs(round(180.0 / period), 7, GRID)
     best = math.inf
@@ -367,6 +416,13 @@ def main(argv: list[str] | None = None) -> int:
                     "settled_p99": to_display(p99).tolist(),
                     "settled_max": to_display(worst).tolist(),
                     "margin_si": margin.tolist(),
+                    "transient": {
+                        "envelopes_si": derivation.envelopes.tolist(),
+                        "budget_si": budget.envelopes.tolist(),
+                        "estimation": derivation.estimation.tolist(),
+                        "worst_bound_ratio": ratios.worst,
+                        "seconds": derivation.seconds,
+                    },
                     "loop_s": best,
                     "realtime_factor": sim_s / best,
                     "interpreted_s": base_s,

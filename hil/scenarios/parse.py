@@ -4,7 +4,8 @@ Keys and types are checked by :mod:`hil.core.config` (the tables that are one
 dataclass, ``margin`` and ``hull``, by :func:`~hil.core.config.from_table`); this
 module adds what only a scenario knows: cells dividing the arena, input grids,
 heading cells dividing the circle, plausible units, shapes told apart by their
-keys, and sets that fit together (:func:`~hil.scenarios.scenario.check_sets`).
+keys, a ``[transient]`` budget whose bins cover one period (missing: the paper's zero
+budget), and sets that fit together (:func:`~hil.scenarios.scenario.check_sets`).
 """
 
 from __future__ import annotations
@@ -12,8 +13,11 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import numpy as np
+
 from hil.core.config import ConfigError, check_keys, from_table, number, numbers, table
 from hil.core.shapes import Polygon, Rect, Shape
+from hil.core.transient import BudgetClass, TransientBudget, TransientBudgetError
 from hil.scenarios.errors import ScenarioError
 from hil.scenarios.scenario import (
     Hull,
@@ -24,6 +28,7 @@ from hil.scenarios.scenario import (
     TrackingMargin,
     check_geometry,
     check_sets,
+    check_transient,
 )
 
 __all__ = ["parse_scenario"]
@@ -38,6 +43,7 @@ _TOP_KEYS = {
     "inputs",
     "timing",
     "margin",
+    "transient",
     "hull",
     "abstraction",
     "obstacles",
@@ -166,6 +172,59 @@ def _margin(data: dict[str, Any]) -> TrackingMargin:
     return from_table(TrackingMargin, raw, "margin.", note=_UNITS)
 
 
+_ENVELOPE_AXES = ("surge_mps", "sway_mps", "yaw_rate_radps")
+_ENVELOPE_CLASSES = {BudgetClass.HOLD: "hold", BudgetClass.CHANGE: "change"}
+_TRANSIENT_KEYS = {
+    "bin_s",
+    "estimation_position_m",
+    "estimation_heading_rad",
+    "source",
+    *(f"{c}_{a}" for c in _ENVELOPE_CLASSES.values() for a in _ENVELOPE_AXES),
+}
+
+
+def _transient(data: dict[str, Any], tau_s: float) -> TransientBudget:
+    """Read `[transient]`; a missing table is the paper's zero budget.
+
+    The bins must cover one period: ``bin_s`` divides ``tau_s`` and every envelope key
+    lists ``tau_s / bin_s`` numbers >= 0 (bin j covers [j bin_s, (j + 1) bin_s]).
+    """
+    if "transient" not in data:
+        return TransientBudget.zero(tau_s)
+    raw = table(data, "transient")
+    where = "transient."
+    _keys(raw, _TRANSIENT_KEYS, where)
+    bin_s = number(raw, "bin_s", where)
+    if not (bin_s > 0.0 and _divides(tau_s, bin_s)):
+        raise ScenarioError(
+            f"key {where}'bin_s' = {bin_s!r} must be > 0 and divide timing.'tau_s' = {tau_s!r}"
+        )
+    n_bins = round(tau_s / bin_s)
+    env = np.empty((len(_ENVELOPE_CLASSES), n_bins, len(_ENVELOPE_AXES)))
+    for cls, prefix in _ENVELOPE_CLASSES.items():
+        for axis, suffix in enumerate(_ENVELOPE_AXES):
+            key = f"{prefix}_{suffix}"
+            values = numbers(raw, key, where, n_bins)
+            bad = [v for v in values if v < 0.0]
+            if bad:
+                raise ScenarioError(f"key {where}{key!r} must be >= 0, got {bad[0]!r}")
+            env[cls, :, axis] = values
+    estimation = {}
+    for key in ("estimation_position_m", "estimation_heading_rad"):
+        estimation[key] = number(raw, key, where)
+        if estimation[key] < 0.0:
+            raise ScenarioError(f"key {where}{key!r} must be >= 0, got {estimation[key]!r}")
+    source = raw.get("source", "")
+    if not isinstance(source, str):
+        raise ScenarioError(f"key {where}'source' must be a string, got {source!r}")
+    try:
+        budget = TransientBudget(bin_s=tau_s / n_bins, envelopes=env, source=source, **estimation)
+    except TransientBudgetError as err:
+        raise ScenarioError(f"table 'transient': {err}") from err
+    check_transient(budget, tau_s)
+    return budget
+
+
 def _parse(data: dict[str, Any], default_name: str) -> Scenario:
     _keys(data, _TOP_KEYS, "")
     state = table(data, "state")
@@ -215,6 +274,8 @@ def _parse(data: dict[str, Any], default_name: str) -> Scenario:
         if value < 0.0:
             raise ScenarioError(f"key margin.{key!r} must be >= 0, got {value!r}")
 
+    transient = _transient(data, tau)
+
     hull = from_table(Hull, table(data, "hull", required=False), "hull.", note=_UNITS)
     if not (hull.length_m > 0.0 and hull.beam_m > 0.0):
         raise ScenarioError(f"key 'hull' must have positive sizes, got {hull!r}")
@@ -258,6 +319,7 @@ def _parse(data: dict[str, Any], default_name: str) -> Scenario:
         yaw_rate=yaw,
         tau_s=tau,
         margin=margin,
+        transient=transient,
         hull=hull,
         obstacles=tuple(obstacles),
         target=target,

@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hil.core.shapes import Polygon, Rect, Shape, convex_distance_m, shapes_overlap
+from hil.core.transient import TransientBudget
 from hil.scenarios.errors import ScenarioError
 
 FloatArray = NDArray[np.float64]
@@ -31,6 +32,7 @@ __all__ = [
     "TrackingMargin",
     "check_geometry",
     "check_sets",
+    "check_transient",
     "hull_footprint",
 ]
 
@@ -117,7 +119,7 @@ def hull_footprint(hull: Hull, x_m: float, y_m: float, psi_rad: float) -> Polygo
 
 @dataclass(frozen=True, slots=True)
 class Scenario:
-    """One docking problem: arena, grid, inputs, timing, margin, hull and sets.
+    """One docking problem: arena, grid, inputs, timing, margins, hull and sets.
 
     Attributes:
         name: Short name.
@@ -130,7 +132,11 @@ class Scenario:
         sway: Sway input grid (m/s).
         yaw_rate: Yaw-rate input grid (rad/s).
         tau_s: Sampling time of the abstraction (s).
-        margin: Tracking-error margin per axis.
+        margin: Tracking-error margin per axis (the constant margin after settling; being
+            replaced by `transient`).
+        transient: Time-resolved budget of the velocity error per period class and of
+            the EKF's pose error (:class:`~hil.core.transient.TransientBudget`); its bins
+            cover `tau_s`.
         hull: Hull footprint.
         obstacles: Real obstacles with their inflation.
         target: Real target with its deflation.
@@ -147,12 +153,16 @@ class Scenario:
     yaw_rate: InputAxis
     tau_s: float
     margin: TrackingMargin
+    transient: TransientBudget
     hull: Hull
     obstacles: tuple[Obstacle, ...]
     target: Target
 
     def digest(self) -> str:
-        """Return a short hash of everything in the scenario (for logs and caches)."""
+        """Return a short hash of everything in the scenario (for logs and caches).
+
+        The transient budget's numbers enter by their own digest (its ``repr``).
+        """
         return hashlib.sha256(repr(self).encode()).hexdigest()[:16]
 
     @property
@@ -195,6 +205,15 @@ class Scenario:
         """Return the same scenario with another tracking-error margin."""
         return replace(self, margin=margin)
 
+    def with_transient(self, budget: TransientBudget) -> Scenario:
+        """Return the same scenario with another transient budget.
+
+        Raises:
+            ScenarioError: The budget's bins do not cover exactly one period `tau_s`.
+        """
+        check_transient(budget, self.tau_s)
+        return replace(self, transient=budget)
+
     def hull_clearance_m(self, x_m: float, y_m: float, psi_rad: float) -> float:
         """Return the distance from the hull at (x, y, psi) to the nearest real obstacle (m).
 
@@ -213,6 +232,19 @@ class Scenario:
                 v[:, 1].min() - self.y_range_m[0],
                 self.y_range_m[1] - v[:, 1].max(),
             )
+        )
+
+
+def check_transient(budget: TransientBudget, tau_s: float) -> None:
+    """Check that a transient budget's bins cover exactly one command period.
+
+    Raises:
+        ScenarioError: ``n_bins * bin_s`` differs from `tau_s`.
+    """
+    if abs(budget.horizon_s() - tau_s) > 1e-9 * max(1.0, tau_s):
+        raise ScenarioError(
+            f"key transient.'bin_s' = {budget.bin_s!r} with {budget.n_bins} bins covers "
+            f"{budget.horizon_s()!r} s, not one period timing.'tau_s' = {tau_s!r} s"
         )
 
 

@@ -161,6 +161,8 @@ class ClosedLoopResult:
         eta: True pose (x, y, psi), shape (N, 3).
         nu: True body velocity (u, v, r), shape (N, 3).
         nu_hat: Velocity the controller used (estimate), shape (N, 3).
+        eta_hat: The EKF's pose estimate at the same instant, shape (N, 3); the true
+            pose without an observer.
         nu_ref: Reference in force, shape (N, 3).
         tau_cmd: PID force demand, shape (N, 3) (N, N, N m).
         tau: Thrust actually applied to the hull, shape (N, 3).
@@ -175,6 +177,7 @@ class ClosedLoopResult:
     eta: FloatArray
     nu: FloatArray
     nu_hat: FloatArray
+    eta_hat: FloatArray
     nu_ref: FloatArray
     tau_cmd: FloatArray
     tau: FloatArray
@@ -253,8 +256,10 @@ def closed_loop_kernel(
             if k_meas >= 0:
                 obs_pose(ekf, k_meas * dt_ns, pose_buf[0], pose_buf[1], pose_buf[2])
             nu_hat = ekf.x[3:6].copy()
+            eta_hat = ekf.x[0:3].copy()
         else:
             nu_hat = nu.copy()
+            eta_hat = eta.copy()
         if k % control_every == 0:
             tau_cmd, u_set, a_set, _, low_state = low_level_tick(low, low_state, nu_ref, nu_hat)
         plant_step(m_inv, coef, low.tp, method, dt, plant, u_set, a_set, b_env[k], trace)
@@ -271,9 +276,10 @@ def closed_loop_kernel(
         row[22:24] = plant[P_ALPHA : P_ALPHA + 2]
         row[24:27] = u_set
         row[27:29] = a_set
+        row[29:32] = eta_hat
 
 
-N_OUT = 29
+N_OUT = 32
 
 
 def unpack(out: FloatArray) -> ClosedLoopResult:
@@ -283,6 +289,7 @@ def unpack(out: FloatArray) -> ClosedLoopResult:
         eta=out[:, 1:4].copy(),
         nu=out[:, 4:7].copy(),
         nu_hat=out[:, 7:10].copy(),
+        eta_hat=out[:, 29:32].copy(),
         nu_ref=out[:, 10:13].copy(),
         tau_cmd=out[:, 13:16].copy(),
         tau=out[:, 16:19].copy(),

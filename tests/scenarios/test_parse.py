@@ -60,6 +60,17 @@ def _edit(path: list[str], value: Any) -> dict[str, Any]:
         (["margin"], {"none": True, "sway_mps": 0.1}, r"'none' = true contradicts .*sway_mps"),
         (["margin"], {"none": "yes"}, r"margin.'none' must be true or false, got 'yes'"),
         (["obstacles", "0", "x_m"], [4.0, 5.0], r"obstacles\[0\] \('O1'\) .* outside the arena"),
+        (["transient"], [1.0], r"key 'transient' must be a table"),
+        (["transient", "bin_s"], KeyError, r"missing key transient.'bin_s'"),
+        (["transient", "bin_s"], 0.3, r"transient.'bin_s' = 0.3 must be > 0 and divide"),
+        (["transient", "bin_s"], 0.5, r"transient.'hold_surge_mps' must be a list of 4 finite"),
+        (["transient", "hold_sway_mps"], [0.01] * 7, r"'hold_sway_mps' must be a list of 8"),
+        (["transient", "change_yaw_rate_radps"], [0.1] * 7 + [-0.1], r"'change_yaw_rate.* >= 0"),
+        (["transient", "change_surge_mps"], KeyError, r"missing key transient.'change_surge_mps'"),
+        (["transient", "estimation_position_m"], -0.001, r"'estimation_position_m' must be >= 0"),
+        (["transient", "estimation_heading_rad"], "1", r"'estimation_heading_rad' must be a fin"),
+        (["transient", "source"], 3, r"transient.'source' must be a string"),
+        (["transient", "hold_surge_deg"], [0.0] * 8, r"unknown key transient.'hold_surge_deg'"),
         (
             ["abstraction", "obstacle_inflation_m"],
             3.0,
@@ -104,3 +115,26 @@ def test_margin_none_is_an_explicit_zero_margin() -> None:
     s = parse_scenario(_edit(["margin"], {"none": True}))
     assert s.margin.as_array().tolist() == [0.0, 0.0, 0.0]
     assert "none = true" in s.margin.source
+
+
+def test_transient_table_reads_into_the_budget() -> None:
+    data = _paper_data()
+    s = parse_scenario(data)
+    raw = data["transient"]
+    b = s.transient
+    assert b.n_bins == 8
+    assert b.horizon_s() == pytest.approx(s.tau_s)
+    assert b.envelopes[0, :, 0].tolist() == raw["hold_surge_mps"]
+    assert b.envelopes[0, :, 2].tolist() == raw["hold_yaw_rate_radps"]
+    assert b.envelopes[1, :, 1].tolist() == raw["change_sway_mps"]
+    assert b.estimation_position_m == raw["estimation_position_m"]
+    assert b.source == raw["source"]
+
+
+def test_missing_transient_table_is_the_zero_budget() -> None:
+    s = parse_scenario(_edit(["transient"], KeyError))
+    assert s.transient.is_zero()
+    assert s.transient.horizon_s() == pytest.approx(s.tau_s)
+    assert s.digest() != parse_scenario(_paper_data()).digest()  # the digest covers it
+    zeroed = _edit(["transient", "hold_surge_mps"], [0.0] * 8)
+    assert parse_scenario(zeroed).digest() != parse_scenario(_paper_data()).digest()

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from hil.core.shapes import Rect
+from hil.core.transient import TransientBudget
 from hil.scenarios import ScenarioError, load_scenario
 
 
@@ -36,3 +37,15 @@ def test_digest_follows_the_content() -> None:
     s = load_scenario("coarse")
     assert s.digest() == load_scenario("coarse").digest()
     assert s.digest() != s.with_obstacles_moved(np.array([[0.1, 0.0], [0.0, 0.0]])).digest()
+
+
+def test_with_transient_replaces_the_budget_and_the_digest() -> None:
+    s = load_scenario("coarse")
+    zero = s.with_transient(TransientBudget.zero(s.tau_s))
+    assert zero.transient.is_zero()
+    assert zero.margin == s.margin
+    assert zero.digest() != s.digest()
+    assert zero.with_transient(s.transient) == s
+    assert zero.with_transient(s.transient).digest() == s.digest()
+    with pytest.raises(ScenarioError, match=r"covers 4.0 s, not one period timing.'tau_s'"):
+        s.with_transient(TransientBudget.zero(2 * s.tau_s))

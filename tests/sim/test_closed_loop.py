@@ -92,7 +92,7 @@ def test_compiled_loop_is_the_runtime_low_level_tick_for_tick(
 def test_outputs_are_time_major_and_consistent() -> None:
     res = simulate_closed_loop(REFS)
     n = REFS.shape[0] * 200
-    for name in ("eta", "nu", "nu_hat", "nu_ref", "tau_cmd", "tau", "commands"):
+    for name in ("eta", "nu", "nu_hat", "eta_hat", "nu_ref", "tau_cmd", "tau", "commands"):
         assert getattr(res, name).shape == (n, 3), name
     assert res.angles_rad.shape == (n, 2)
     np.testing.assert_allclose(res.t_s, np.arange(n) * 0.01)
@@ -122,6 +122,16 @@ def test_ekf_in_loop_estimates_velocity() -> None:
     err = rms(res.nu_hat - res.nu)
     assert np.all(err < np.array([0.005, 0.005, 0.005]))
     assert np.all(err > 0.0)  # the noise is really there
+
+
+def test_ekf_in_loop_estimates_the_pose() -> None:
+    res = simulate_closed_loop(REFS, LowLevelConfig(seed=3))
+    position = np.hypot(*(res.eta_hat[:, :2] - res.eta[:, :2]).T)
+    heading = np.abs(np.angle(np.exp(1j * (res.eta_hat[:, 2] - res.eta[:, 2]))))
+    assert 0.0 < position.max() < 0.01  # m: motion capture at 100 Hz, mm noise
+    assert 0.0 < heading.max() < 0.01  # rad
+    exact = simulate_closed_loop(REFS, LowLevelConfig(observer=None))
+    np.testing.assert_array_equal(exact.eta_hat, exact.eta)
 
 
 @pytest.mark.parametrize("allocator", list(AllocatorKind))
