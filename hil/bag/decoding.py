@@ -127,6 +127,8 @@ def _decision(msg: Any) -> Decision:
         chosen_input=tuple(float(c) for c in np.asarray(msg.chosen_input)),  # type: ignore[arg-type]
         controller_version=int(msg.controller_version),
         scenario_hash=str(msg.scenario_hash),
+        reference_index=int(msg.reference_index),
+        first=bool(msg.first),
     )
 
 

@@ -257,6 +257,8 @@ def decision_msg(record: Decision) -> Any:
         chosen_input=np.array(record.chosen_input, dtype=np.float64),
         controller_version=record.controller_version,
         scenario_hash=record.scenario_hash,
+        reference_index=record.reference_index,
+        first=record.first,
     )
 
 

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from hil import __version__
 
-FORMAT_VERSION = "1"
+FORMAT_VERSION = "2"
 """Version of hil's log layout, stored as ``custom_data['hil_format']``."""
 
 

@@ -42,12 +42,7 @@ def run(args: argparse.Namespace) -> int:
     """Synthesize, print the report; return 0, 1 without a winning start, 2 on bad input."""
     import numpy as np
 
-    from hil.controllers.symbolic import (
-        SymbolicError,
-        SymbolicProblem,
-        Synthesizer,
-        tables_for,
-    )
+    from hil.controllers.symbolic import SymbolicError, SymbolicProblem, Synthesizer
     from hil.scenarios import ScenarioError, load_scenario
 
     grid_text = "scenario's"
@@ -56,32 +51,26 @@ def run(args: argparse.Namespace) -> int:
         problem = SymbolicProblem.from_scenario(scenario)
         grid_text = " x ".join(str(n) for n in problem.grid.shape)
         start = time.perf_counter()
-        tables, cached = tables_for(
-            problem.grid,
-            problem.inputs,
-            problem.tau_s,
-            problem.margin,
-            cache_dir=args.cache_dir,
-            use_cache=not args.no_cache,
-        )
+        tables, cached = problem.tables(cache_dir=args.cache_dir, use_cache=not args.no_cache)
         abstraction_s = time.perf_counter() - start
         threads = args.threads if args.threads > 0 else None
         synthesizer = Synthesizer(tables, threads=threads, trace_memory=True)
-        obstacles = problem.obstacle_mask()
-        target = problem.target_mask(obstacles)
         start = time.perf_counter()
-        first = synthesizer.solve(obstacles, target)  # includes numba's load or compile
+        first = synthesizer.solve_problem(problem)  # includes numba's load or compile
         first_s = time.perf_counter() - start
         runs = [first] + [
-            synthesizer.solve(obstacles, target) for _ in range(max(args.repeat, 1) - 1)
+            synthesizer.solve_problem(problem) for _ in range(max(args.repeat, 1) - 1)
         ]
     except (ScenarioError, SymbolicError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
     except MemoryError as err:
-        print(f"error: not enough memory to synthesize on the {grid_text} grid of "
-              f"{args.scenario!r} ({err}): use a coarser [grid] cell_m or fewer "
-              "heading_cells", file=sys.stderr)
+        print(
+            f"error: not enough memory to synthesize on the {grid_text} grid of "
+            f"{args.scenario!r} ({err}): use a coarser [grid] cell_m or fewer "
+            "heading_cells",
+            file=sys.stderr,
+        )
         return 2
     controller = runs[-1]
     stats = controller.stats
@@ -95,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
         "grid_cells": grid.n_cells,
         "inputs": int(problem.inputs.shape[0]),
         "tau_s": problem.tau_s,
-        "margin": [float(m) for m in problem.margin],
+        "budget": problem.budget.source or "zero (the paper's ideal loop)",
         "abstraction_seconds": abstraction_s,
         "abstraction_cached": cached,
         "first_synthesis_seconds": first_s,

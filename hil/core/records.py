@@ -124,6 +124,11 @@ class Decision:
         chosen_input: The chosen (u, v, r); zeros when `chosen_index` is -1.
         controller_version: Counter bumped on every re-synthesis swap.
         scenario_hash: Hash of the scenario the controller was synthesized for.
+        reference_index: Input-grid index of the reference in force when the decision
+            was taken (the previous command; on a first decision the input nearest the
+            estimated velocity); -1 when unknown.
+        first: A first decision (start, or after a stop or hold): every candidate was
+            budgeted as a reference change and the vessel may have been moving.
     """
 
     t_ns: int
@@ -137,6 +142,8 @@ class Decision:
     chosen_input: Vec3
     controller_version: int
     scenario_hash: str
+    reference_index: int = -1
+    first: bool = False
 
     def __post_init__(self) -> None:
         _check_time("decision", self.t_ns)
@@ -153,9 +160,10 @@ class Decision:
                 f"decision has {len(self.safe_inputs)} safe inputs but "
                 f"{len(self.safe_input_indices)} indices: {self.safe_input_indices!r}"
             )
-        if self.chosen_index < -1:
+        if self.chosen_index < -1 or self.reference_index < -1:
             raise RecordValueError(
-                f"decision chosen_index must be >= -1, got {self.chosen_index!r}"
+                f"decision chosen_index and reference_index must be >= -1, got "
+                f"{self.chosen_index!r} and {self.reference_index!r}"
             )
         if not 0 <= self.controller_version < 2**32:
             raise RecordValueError(
@@ -175,6 +183,8 @@ class Decision:
         controller_version: int,
         scenario_hash: str,
         chosen_input: ArrayLike | None = None,
+        reference_index: int = -1,
+        first: bool = False,
     ) -> Decision:
         """Build a decision from numpy arrays.
 
@@ -191,6 +201,8 @@ class Decision:
             scenario_hash: Scenario hash.
             chosen_input: The chosen (u, v, r), shape (3,); looked up in `safe_inputs`
                 when omitted (zeros when `chosen_index` is -1).
+            reference_index: Input-grid index of the reference in force, -1 unknown.
+            first: Whether it was a first decision.
 
         Returns:
             The decision.
@@ -225,6 +237,8 @@ class Decision:
             chosen_input=chosen,
             controller_version=int(controller_version),
             scenario_hash=str(scenario_hash),
+            reference_index=int(reference_index),
+            first=bool(first),
         )
 
     def safe_inputs_array(self) -> FloatArray:

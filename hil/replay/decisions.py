@@ -72,18 +72,25 @@ class Recomputed:
 
 
 def recompute(
-    controller: SymbolicController, state: FloatArray, previous: FloatArray
+    controller: SymbolicController,
+    state: FloatArray,
+    previous: FloatArray,
+    reference: int,
+    first: bool,
 ) -> Recomputed:
-    """Take the runtime's decision at `state` (3,) given the previous choice (3,).
+    """Take the runtime's decision at `state` (3,) again.
+
+    Given the previous choice (3,) for the cost J, the reference in force (input-grid
+    index) and whether it was a first decision.
 
     Mirrors :meth:`hil.runtime.loop.Runtime._decide`: no input in the target
-    (value 0) or outside the winning set (value inf).
+    (value 0) or where nothing is safe (value inf).
     """
     cell = controller.locate(state)
-    value = controller.value(state)
+    value = controller.value(state, reference, first)
     if value == 0.0 or math.isinf(value):
         return Recomputed(cell, value, (), -1)
-    indices = controller.safe_input_indices(state)
+    indices = controller.safe_input_indices(state, reference, first)
     chosen = -1
     if indices.size:
         chosen = int(indices[select_index(controller.inputs[indices], previous)])
@@ -297,7 +304,12 @@ def _recomputed(
         if isinstance(controller, str):
             yield d, controller, None, previous
             continue
-        yield d, recompute(controller, np.array(d.state), previous), controller, previous
+        yield (
+            d,
+            recompute(controller, np.array(d.state), previous, d.reference_index, d.first),
+            controller,
+            previous,
+        )
         if d.chosen_index >= 0:
             previous = np.array(d.chosen_input)
 

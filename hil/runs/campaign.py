@@ -57,7 +57,8 @@ def draw_starts(controller: Controller, n: int, seed: int,
     while len(starts) < n:
         pose = (float(rng.uniform(*region.x_m)), float(rng.uniform(*region.y_m)),
                 float(rng.uniform(-math.pi, math.pi)))
-        if controller.is_winning(pose):
+        # The runtime's first decision budgets every input as a first command.
+        if math.isfinite(controller.decision_value(pose, None, first=True)):
             starts.append(pose)
         else:
             discarded += 1

@@ -60,8 +60,10 @@ class GuaranteeViolations:
         inflated_obstacle: Spans with the centre inside an inflated (abstract) obstacle.
         hull_contacts: Spans with the hull touching a real obstacle.
         hull_outside_arena: Spans with a hull corner outside the arena.
-        late_intervals: Intervals held longer than tau plus half a loop period.
-        estimation_misses: Decisions whose true start cell was not the decision's cell.
+        late_intervals: Intervals held longer than the tables cover (tau + late_s) plus
+            half a loop period.
+        estimation_misses: Decisions whose true start lay farther from the decision's
+            cell than the budget's estimation bound.
         worst_tube_exit_m: Largest distance of the centre to the tube cells (m).
         worst_successor_miss_m: Largest distance at tau to the successor cells (m).
         worst_heading_miss_rad: Largest angle at tau to the successor headings (rad).
@@ -253,20 +255,25 @@ def judge_run(
         start = eta[r0]
         i, j, k = cells_of(grid, start[None, :])
         if (int(i[0]), int(j[0]), int(k[0])) != cell:
-            out["estimation_misses"] += 1
-            worst["worst_estimation_m"] = max(
-                worst["worst_estimation_m"], _cell_distance_m(controller, cell, start))
+            miss = _cell_distance_m(controller, cell, start)
+            worst["worst_estimation_m"] = max(worst["worst_estimation_m"], miss)
+            if miss > scenario.transient.estimation_position_m:
+                out["estimation_misses"] += 1
         if decision.chosen_index < 0:
             continue
-        contract = DecisionContract.of(controller, cell, decision.chosen_index)
+        contract = DecisionContract.of(
+            controller, cell, decision.chosen_index, decision.reference_index, decision.first
+        )
         out["intervals"] += 1
-        r_tau = r0 + round(contract.tau_s / dt)
         r_next = rows[index + 1] if index + 1 < len(rows) else n - 1
+        r_tau = r0 + round(contract.tau_s / dt)
         if index + 1 < len(rows):
             late_s = (r_next - r0) * dt - contract.tau_s
-            if late_s > tick_s / 2:
+            if late_s > contract.late_s + tick_s / 2:
                 out["late_intervals"] += 1
                 worst["worst_late_s"] = max(worst["worst_late_s"], late_s)
+            elif late_s > 0.0:
+                r_tau = r_next  # a late tick within the budget: judge the real end
         span = eta[r0 : min(r_tau, r_next, n - 1) + 1]
         exits = ~contract.in_tube(span)
         if exits.any():

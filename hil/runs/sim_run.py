@@ -25,8 +25,7 @@ from numpy.typing import NDArray
 from hil.adapters.sim import ObstacleMotion, SimConfig, SimWorld, ThrusterOutage
 from hil.bag.recorder import Recorder
 from hil.bag.run_info import RunInfo
-from hil.controllers.symbolic import Controller, Synthesizer, tables_for
-from hil.controllers.symbolic.grid import Grid
+from hil.controllers.symbolic import Controller, SymbolicProblem, Synthesizer
 from hil.core.samples import ObstacleLayout
 from hil.runs.summary import RunSummary, summarize_run
 from hil.runtime.assembly import (
@@ -155,8 +154,7 @@ def build_runtime(
 
 def synthesizer_for(scenario: Scenario, cache_dir: Path | None = None) -> Synthesizer:
     """Return a synthesizer holding the scenario grid's tables (from the disk cache)."""
-    tables, _ = tables_for(Grid.from_scenario(scenario), scenario.inputs(), scenario.tau_s,
-                           scenario.margin.as_array(), cache_dir=cache_dir)
+    tables, _ = SymbolicProblem.from_scenario(scenario).tables(cache_dir=cache_dir)
     return Synthesizer(tables)
 
 

@@ -14,7 +14,13 @@ from numpy.typing import NDArray
 
 from hil.controllers.low_level import LowLevelController, LowLevelParams
 from hil.controllers.observer import Ekf, ObserverStatus
-from hil.controllers.symbolic import Controller, NoWinningSetError, Synthesizer, cost
+from hil.controllers.symbolic import (
+    Controller,
+    NoWinningSetError,
+    SymbolicProblem,
+    Synthesizer,
+    cost,
+)
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
 from hil.core.shapes import Rect
 from hil.runtime.stack import LowLevelOutput
@@ -88,8 +94,9 @@ class PidAllocator:
         """Return the force demand and the commands that realize it."""
         out = self.controller.tick(nu_ref, nu_hat)
         u, alpha = out.commands, out.angles_rad
-        command = ThrusterCommand(t_ns, float(u[0]), float(u[1]), float(u[2]),
-                                  float(alpha[0]), float(alpha[1]))
+        command = ThrusterCommand(
+            t_ns, float(u[0]), float(u[1]), float(u[2]), float(alpha[0]), float(alpha[1])
+        )
         return LowLevelOutput(out.tau_n, command)
 
     def reset(self) -> None:
@@ -122,16 +129,20 @@ class SymbolicAdapter:
             return -1
         return sum(c * s for c, s in zip(cell, self._strides, strict=True))
 
-    def value(self, state: FloatArray) -> float:
-        """Return the value at `state` (inf outside the winning set)."""
-        return self.controller.value(state)
+    def nearest_input(self, velocity: FloatArray) -> int:
+        """Return the input-grid index nearest a body velocity (u, v, r)."""
+        return self.controller.lattice.nearest(velocity)
 
-    def safe_input_indices(self, state: FloatArray) -> IntArray:
+    def value(self, state: FloatArray, reference: int, first: bool) -> float:
+        """Return the value at `state` with `reference` in force (inf: nothing safe)."""
+        return self.controller.decision_value(state, reference, first)
+
+    def safe_input_indices(self, state: FloatArray, reference: int, first: bool) -> IntArray:
         """Return the input indices of every safe input at `state`, shape (k,)."""
         cell = self.controller.grid.cell_of(state)
         if cell is None:
             return np.zeros(0, dtype=np.int64)
-        return self.controller.safe_input_indices_at(cell).astype(np.int64)
+        return self.controller.safe_input_indices_at(cell, reference, first).astype(np.int64)
 
 
 def select_index(safe_inputs: FloatArray, previous: FloatArray) -> int:
@@ -149,10 +160,13 @@ def obstacles_from_layout(scenario: Scenario, layout: ObstacleLayout) -> tuple[O
     out = []
     for n, rect in enumerate(layout.obstacles):
         known = scenario.obstacles[n] if n < len(scenario.obstacles) else None
-        out.append(Obstacle(
-            name=known.name if known else f"obstacle{n + 1}",
-            shape=Rect(rect.x_min_m, rect.x_max_m, rect.y_min_m, rect.y_max_m),
-            inflation_m=known.inflation_m if known else default))
+        out.append(
+            Obstacle(
+                name=known.name if known else f"obstacle{n + 1}",
+                shape=Rect(rect.x_min_m, rect.x_max_m, rect.y_min_m, rect.y_max_m),
+                inflation_m=known.inflation_m if known else default,
+            )
+        )
     return tuple(out)
 
 
@@ -161,8 +175,14 @@ def layout_from_scenario(scenario: Scenario, t_ns: int = 0) -> ObstacleLayout:
     rects = []
     for obstacle in scenario.obstacles:
         v = obstacle.shape.vertices()
-        rects.append(Rect(float(v[:, 0].min()), float(v[:, 0].max()),
-                          float(v[:, 1].min()), float(v[:, 1].max())))
+        rects.append(
+            Rect(
+                float(v[:, 0].min()),
+                float(v[:, 0].max()),
+                float(v[:, 1].min()),
+                float(v[:, 1].max()),
+            )
+        )
     return ObstacleLayout(t_ns, tuple(rects))
 
 
@@ -185,11 +205,11 @@ class LayoutSolver:
             NoWinningSetError: No cell outside the target is winning.
         """
         scenario = self.scenario.with_obstacles(obstacles_from_layout(self.scenario, layout))
-        controller = self.synthesizer.solve_sets(scenario.inflated_obstacles(),
-                                                 scenario.abstract_target())
+        controller = self.synthesizer.solve_problem(SymbolicProblem.from_scenario(scenario))
         if not controller.has_winning_start:
             raise NoWinningSetError(
-                f"no winning cell outside the target for the layout at t={layout.t_ns} ns")
+                f"no winning cell outside the target for the layout at t={layout.t_ns} ns"
+            )
         return SymbolicAdapter(controller)
 
 

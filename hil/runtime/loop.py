@@ -128,6 +128,9 @@ class Runtime:
         self._next_decision_ns = 0
         self._nu_ref = np.zeros(3)
         self._previous_input = np.zeros(3)
+        # Input-grid index of the reference in force; None: the next decision is a first
+        # one (start, or after a stop or a hold), taken from the estimated velocity.
+        self._reference_index: int | None = None
         self._consecutive_sink_failures = 0
         self._start_ns = world.clock.now_ns()
         self.stats.start_ns = self._start_ns
@@ -182,7 +185,7 @@ class Runtime:
         eta_hat, nu_hat = estimate
         self.log.estimate(t_ns, eta_hat, nu_hat)
         if t_ns >= self._next_decision_ns:
-            self._decide(t_ns, eta_hat)
+            self._decide(t_ns, eta_hat, nu_hat)
             self._next_decision_ns = t_ns + round(self.config.decision_period_s * NS_PER_S)
             if self._abort is not None:
                 self._stop(t_ns, EventCode.ABORTED, self._abort)
@@ -259,8 +262,9 @@ class Runtime:
         if changed:
             # A layout known before the run (the scenario's, stamped 0) is recorded when
             # the run first sees it, so that every topic of the log shares the run's clock.
-            self.log.obstacles(layout if layout.t_ns >= self._start_ns
-                               else replace(layout, t_ns=t_ns))
+            self.log.obstacles(
+                layout if layout.t_ns >= self._start_ns else replace(layout, t_ns=t_ns)
+            )
         self._submitted_layout = layout
         self._last_submit_ns = t_ns
         self.resynthesizer.submit(layout)
@@ -351,12 +355,14 @@ class Runtime:
                 f"no pose for more than {self.config.pose_timeout_s} s; thrusters to zero",
             )
             self.mode = Mode.HOLD
+            self._reference_index = None
             self.low_level.reset()
         self._send(ThrusterCommand.zero(t_ns))
 
-    def _decide(self, t_ns: int, eta_hat: FloatArray) -> None:
+    def _decide(self, t_ns: int, eta_hat: FloatArray, nu_hat: FloatArray) -> None:
         controller = self.controller
         if controller is None:
+            self._reference_index = None
             if self.mode is not Mode.WAITING:
                 self._set_reference(np.zeros(3))
                 self._event(
@@ -367,7 +373,13 @@ class Runtime:
                 )
             return
         cell = controller.locate(eta_hat)
-        value = controller.value(eta_hat)
+        first = self._reference_index is None
+        reference = (
+            controller.nearest_input(nu_hat)
+            if self._reference_index is None
+            else self._reference_index
+        )
+        value = controller.value(eta_hat, reference, first)
         indices = np.zeros(0, dtype=np.int64)
         chosen_index = -1
         if value == 0.0:
@@ -383,13 +395,18 @@ class Runtime:
             )
             where = "outside the grid" if cell < 0 else "outside the winning set"
             if self.stats.decisions == 0:
-                self._abort = (f"start {state} is {where}: no input is safe from there "
-                               "(too close to an obstacle or a wall, or cut off from the target)")
+                self._abort = (
+                    f"start {state} is {where}: no input is safe from there "
+                    "(too close to an obstacle or a wall, cut off from the target, "
+                    "or moving too fast to turn away in time)"
+                )
             elif self._not_winning_before:
-                self._abort = (f"state {state} still {where} after "
-                               f"{self.config.decision_period_s:g} s stopped: no safe input")
+                self._abort = (
+                    f"state {state} still {where} after "
+                    f"{self.config.decision_period_s:g} s stopped: no safe input"
+                )
         else:
-            indices = controller.safe_input_indices(eta_hat)
+            indices = controller.safe_input_indices(eta_hat, reference, first)
             if indices.size:
                 safe = controller.inputs[indices]
                 chosen_index = int(indices[self.select(safe, self._previous_input)])
@@ -400,6 +417,9 @@ class Runtime:
         self._set_reference(chosen)
         if chosen_index >= 0:
             self._previous_input = chosen
+        # A stop (reference zero outside the lattice step) is not budgeted: after it the
+        # next decision starts afresh from the estimated velocity.
+        self._reference_index = chosen_index if chosen_index >= 0 else None
         self.stats.decisions += 1
         self.log.decision(
             Decision.from_arrays(
@@ -414,6 +434,8 @@ class Runtime:
                 self.controller_version,
                 self.scenario_hash,
                 chosen_input=chosen,
+                reference_index=reference,
+                first=first,
             )
         )
 

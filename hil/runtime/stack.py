@@ -35,15 +35,21 @@ class Observer(Protocol):
 
 
 class SymbolicController(Protocol):
-    """A synthesized controller: its value function and its safe inputs."""
+    """A synthesized controller over (cell, reference in force): values and safe inputs."""
 
     def locate(self, state: FloatArray) -> int:
         """Return the flat cell index of `state` (x, y, psi), -1 outside the grid."""
 
-    def value(self, state: FloatArray) -> float:
-        """Return the value (steps to target) at `state`; +inf when not winning."""
+    def nearest_input(self, velocity: FloatArray) -> int:
+        """Return the input-grid index nearest a body velocity (u, v, r)."""
 
-    def safe_input_indices(self, state: FloatArray) -> IntArray:
+    def value(self, state: FloatArray, reference: int, first: bool) -> float:
+        """Return the value (steps to target) at `state` with input `reference` in force.
+
+        +inf when no input is safe there (`first`: the run's first command).
+        """
+
+    def safe_input_indices(self, state: FloatArray, reference: int, first: bool) -> IntArray:
         """Return the input-grid indices of every safe input at `state`, shape (k,)."""
 
     @property

@@ -20,10 +20,20 @@ Soundness (feedback refinement relations, Reissig, Weber and Rungger 2016, IEEE 
   An axis needs no padding where its velocity cannot change sign over the span (the
   world velocity direction psi0 + atan2(v, u) + r t avoids the axis' critical angles
   for every psi0 in the cell): the motion along it is then monotone between samples.
-- With a tracking-error margin m = (m_u, m_v, m_r) on |nu - nu_ref|, the heading error
-  grows at most m_r t and the position error at most
-  rho(t) = |(m_u, m_v)| t + |(u, v)| m_r t^2 / 2
-  (|R(a) - R(b)| <= |a - b|), added to every box up to the end of its span.
+- The real closed loop strays from the arc by at most rho(t) in position and theta(t)
+  in heading (:class:`DeviationBudget`, derived from the low level the vessel runs:
+  :mod:`hil.core.transient`), per class: 0 when the period holds the previous
+  reference, 1 when it changes it by at most one grid step per axis (class 1's bound
+  is the larger of both). rho at the end of each span pads every box of the span.
+- Estimation: decisions use the estimated pose, within eps_m and eps_rad of the true
+  one. The start heading interval is widened by eps_rad and every tube box padded by
+  eps_m (the true start lies there); the successor is padded by 2 eps_m and its
+  heading offsets by 2 eps_rad, so it holds the *next estimated* cell.
+- A command may be held late_s past tau (a late tick): the successor holds every end
+  in [tau, tau + late_s] and the tube runs to tau + late_s.
+- The hull: ``hull_psi`` gives the headings the hull may take over the period, per
+  start heading cell and yaw-rate value; the synthesis tests the tube against the
+  cells free for the hull over that range (:mod:`hull`).
 - Half-open cells: a displacement interval [lo, hi] reaches cell offsets
   floor(lo / h) .. ceil(hi / h); the heading offset interval likewise. Bounds within
   1e-9 cell widths of a cell edge (5e-11 m on the paper grid) snap to it, so that
@@ -35,8 +45,10 @@ from __future__ import annotations
 import hashlib
 import math
 import os
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -55,7 +67,10 @@ __all__ = [
     "tables_for",
 ]
 
-_VERSION = 2
+_VERSION = 3
+
+N_CLASSES = 3
+"""Budget classes of the tables: 0 hold, 1 change, 2 first command."""
 _SNAP = 1e-9  # cell widths: bounds this close to a cell edge snap onto it
 
 
@@ -65,35 +80,78 @@ def default_cache_dir() -> Path:
     return Path(env) if env else Path.home() / ".cache" / "hil" / "symbolic"
 
 
+class DeviationBudget(Protocol):
+    """How far the real closed loop may stray from the exact arc (see :mod:`hil.core.transient`).
+
+    Class 0 covers a command period that holds the previous reference, class 1 one that
+    changes it by at most one grid step per axis, class 2 (when there is one) a first
+    command (start, or after a stop or hold), the vessel possibly moving.
+    """
+
+    @property
+    def estimation_position_m(self) -> float:
+        """Bound on the estimate's position error (m)."""
+        ...
+
+    @property
+    def estimation_heading_rad(self) -> float:
+        """Bound on the estimate's heading error (rad)."""
+        ...
+
+    def position_bound_m(self, cls: int, speed_mps: FloatArray, t_s: FloatArray) -> FloatArray:
+        """Return the position deviation bound, shape (m, T), for speeds (m,) at times (T,)."""
+        ...
+
+    def heading_bound_rad(self, cls: int, t_s: FloatArray) -> FloatArray:
+        """Return the heading deviation bound, shape (T,), at times (T,)."""
+        ...
+
+    def digest(self) -> str:
+        """Return a stable hash of the budget's numbers."""
+        ...
+
+
 @dataclass(frozen=True, slots=True, eq=False)
 class Tables:
-    """Cell-offset tables of one grid, input set, tau and margin.
+    """Cell-offset tables of one grid, input set, tau and deviation budget, per class.
+
+    Class c = 0 budgets a period that holds the previous reference, c = 1 one that
+    changes it (one grid step per axis at most), c = 2 a first command (start, or after
+    a stop or hold); each class's boxes contain the lower classes'.
 
     Attributes:
         grid: The state grid.
         inputs: Inputs (surge m/s, sway m/s, yaw rate rad/s), shape (m, 3).
-        tau_s: Sampling time (s).
-        margin: Tracking-error margin (surge, sway, yaw rate), shape (3,).
-        succ: Successor offset boxes, shape (npsi, m, 4) indexed [k, input]:
-            (ox_min, ox_max, oy_min, oy_max) in cells, inclusive.
-        heading: Successor heading offsets, shape (m, 2): (ok_min, ok_max), inclusive;
-            the same for every heading cell.
-        tube_x0: First x offset of the swept tube, shape (npsi, m).
-        tube_n: Number of tube columns, shape (npsi, m).
-        tube_y: Tube column y ranges, shape (npsi, m, c_max, 2): column c is
-            x offset tube_x0 + c with y offsets tube_y[..., c, 0] .. tube_y[..., c, 1].
+        tau_s: Command period (s).
+        late_s: How late a command may come and stay covered (s): every bound holds
+            up to tau + late.
+        succ: Successor offset boxes, shape (3, npsi, m, 4) indexed [c, k, input]:
+            (ox_min, ox_max, oy_min, oy_max) in cells, inclusive; they hold the next
+            *estimated* cell (the true end padded by the estimation bound once more).
+        heading: Successor heading offsets, shape (3, m, 2): (ok_min, ok_max), inclusive.
+        tube_x0: First x offset of the swept tube, shape (3, npsi, m).
+        tube_n: Number of tube columns, shape (3, npsi, m).
+        tube_y: Tube column y ranges, shape (3, npsi, m, c_max, 2): column c is x
+            offset tube_x0 + c with y offsets tube_y[..., c, 0] .. tube_y[..., c, 1].
+        hull_psi: Headings the hull may take during the period, shape (3, npsi, n_yaw, 2)
+            (rad, lo <= hi, not wrapped) for start cell k and the input's yaw-rate value.
+        yaw_index: Each input's yaw-rate value index into hull_psi, shape (m,).
+        budget_key: Digest of the deviation budget.
         key: Hash of everything the tables depend on.
     """
 
     grid: Grid
     inputs: FloatArray
     tau_s: float
-    margin: FloatArray
+    late_s: float
     succ: IntArray
     heading: IntArray
     tube_x0: IntArray
     tube_n: IntArray
     tube_y: IntArray
+    hull_psi: FloatArray
+    yaw_index: IntArray
+    budget_key: str
     key: str
 
     @property
@@ -104,8 +162,24 @@ class Tables:
     def nbytes(self) -> int:
         """Return the memory the tables hold (bytes)."""
         return sum(
-            a.nbytes for a in (self.succ, self.heading, self.tube_x0, self.tube_n, self.tube_y)
+            a.nbytes
+            for a in (
+                self.succ,
+                self.heading,
+                self.tube_x0,
+                self.tube_n,
+                self.tube_y,
+                self.hull_psi,
+                self.yaw_index,
+            )
         )
+
+    def hull_range_index(self) -> IntArray:
+        """Return each (c, k, input)'s row of ``hull_psi.reshape(-1, 2)``, shape (3, npsi, m)."""
+        n_cls, npsi, n_yaw, _ = self.hull_psi.shape
+        base = (np.arange(n_cls)[:, None] * npsi + np.arange(npsi)[None, :]) * n_yaw
+        out: IntArray = (base[:, :, None] + self.yaw_index[None, None, :]).astype(np.int32)
+        return out
 
 
 def displacement(inputs: FloatArray, t_s: FloatArray) -> FloatArray:
@@ -169,95 +243,104 @@ def _heading_offsets(shift_cells: FloatArray, lower: bool) -> IntArray:
 
 
 def _key(
-    grid: Grid, inputs: FloatArray, tau_s: float, margin: FloatArray, n_sub: int, per_sub: int
+    grid: Grid, inputs: FloatArray, tau_s: float, late_s: float, budget_key: str, n_sub: int
 ) -> str:
     h = hashlib.sha256()
-    h.update(repr((_VERSION, grid.digest(), tau_s, n_sub, per_sub)).encode())
+    h.update(repr((_VERSION, grid.digest(), tau_s, late_s, budget_key, n_sub)).encode())
     h.update(np.ascontiguousarray(inputs, dtype=np.float64).tobytes())
-    h.update(np.ascontiguousarray(margin, dtype=np.float64).tobytes())
     return h.hexdigest()[:20]
 
 
-def build_tables(
+def _check_inputs(inputs: FloatArray, tau_s: float, late_s: float) -> FloatArray:
+    arr = np.ascontiguousarray(inputs, dtype=np.float64)
+    if arr.ndim != 2 or arr.shape[1] != 3 or arr.shape[0] == 0 or not np.all(np.isfinite(arr)):
+        raise GridError(f"inputs must be a finite (m, 3) array, got shape {arr.shape!r}")
+    if not (math.isfinite(tau_s) and tau_s > 0.0):
+        raise GridError(f"tau_s must be positive, got {tau_s!r}")
+    if not (math.isfinite(late_s) and late_s >= 0.0):
+        raise GridError(f"late_s must be finite and >= 0, got {late_s!r}")
+    return arr
+
+
+@dataclass(frozen=True, slots=True)
+class _ClassTables:
+    succ: IntArray  # (npsi, m, 4)
+    heading: IntArray  # (m, 2)
+    tube_x0: IntArray  # (npsi, m)
+    tube_n: IntArray  # (npsi, m)
+    tube_y: IntArray  # (npsi, m, c, 2)
+    hull_psi: FloatArray  # (npsi, n_yaw, 2)
+
+
+def _class_tables(
     grid: Grid,
     inputs: FloatArray,
     tau_s: float,
-    margin: FloatArray | None = None,
-    n_sub: int = 16,
-    per_sub: int = 4,
-) -> Tables:
-    """Compute the offset tables (no cache).
-
-    Args:
-        grid: The state grid.
-        inputs: Inputs (u m/s, v m/s, r rad/s), shape (m, 3).
-        tau_s: Sampling time (s).
-        margin: Tracking-error bound (u, v, r), shape (3,); zeros if None.
-        n_sub: Number of sub-intervals of [0, tau] in the swept tube.
-        per_sub: Time samples per sub-interval (the padding shrinks with more).
-
-    Raises:
-        GridError: Inputs of the wrong shape, non-positive tau, negative margin.
-    """
-    inputs = np.ascontiguousarray(inputs, dtype=np.float64)
-    m_arr = np.zeros(3) if margin is None else np.asarray(margin, dtype=np.float64).reshape(3)
-    if (
-        inputs.ndim != 2
-        or inputs.shape[1] != 3
-        or inputs.shape[0] == 0
-        or not np.all(np.isfinite(inputs))
-    ):
-        raise GridError(f"inputs must be a finite (m, 3) array, got shape {inputs.shape!r}")
-    if not (math.isfinite(tau_s) and tau_s > 0.0):
-        raise GridError(f"tau_s must be positive, got {tau_s!r}")
-    if np.any(m_arr < 0.0) or not np.all(np.isfinite(m_arr)):
-        raise GridError(f"margin must be finite and >= 0, got {m_arr!r}")
+    horizon_s: float,
+    rho: Callable[[FloatArray], FloatArray],
+    theta: Callable[[FloatArray], FloatArray],
+    eps_m: float,
+    eps_rad: float,
+    n_sub: int,
+    per_sub: int,
+) -> _ClassTables:
+    """Tables of one class: rho(t) (m, T) and theta(t) (T,) bound the deviation from the arc."""
+    m = inputs.shape[0]
     hp = grid.heading_cell_rad
-    psi_lo = np.asarray(-math.pi + hp * np.arange(grid.npsi), dtype=np.float64)
-    psi_hi = psi_lo + hp
+    # The true start heading lies within eps_rad of the (estimated) cell.
+    psi_lo = np.asarray(-math.pi + hp * np.arange(grid.npsi), dtype=np.float64) - eps_rad
+    psi_hi = psi_lo + hp + 2.0 * eps_rad
     n_t = n_sub * per_sub
-    t = np.linspace(0.0, tau_s, n_t + 1)
-    dt = tau_s / n_t
+    t = np.linspace(0.0, horizon_s, n_t + 1)
+    dt = horizon_s / n_t
     speed = np.hypot(inputs[:, 0], inputs[:, 1])  # (m,)
-    m_lin = math.hypot(m_arr[0], m_arr[1])
-
-    def deviation(t_end: float) -> FloatArray:
-        out: FloatArray = m_lin * t_end + speed * m_arr[2] * t_end**2 / 2.0  # (m,)
-        return out
-
+    r_in = inputs[:, 2]
     boxes = _arc_boxes(displacement(inputs, t), psi_lo, psi_hi)  # (npsi, m, T, 4)
+    t_end = t[per_sub::per_sub]  # (n_sub,)
+    dev_sub = rho(t_end) + eps_m  # (m, n_sub): true position, start uncertain by eps
+    th_sub = theta(t_end)  # (n_sub,)
 
-    # Successor box at tau.
-    end = boxes[:, :, -1, :]
-    pad_end = deviation(tau_s)[None, :]
-    sx0, sx1 = _offsets(end[..., 0] - pad_end, end[..., 1] + pad_end, grid.cell_x_m)
-    sy0, sy1 = _offsets(end[..., 2] - pad_end, end[..., 3] + pad_end, grid.cell_y_m)
+    # Successor: every end time in [tau, tau + late], padded for the deviation and, once
+    # more, for the estimate (the next decision's cell is the estimated one).
+    first = min(math.floor(tau_s / dt + 1e-9), n_t)
+    ends = boxes[:, :, first:, :]
+    between_end = speed[None, :] * dt / 2.0 if ends.shape[2] > 1 else 0.0
+    pad_end = (rho(t[-1:])[:, 0] + 2.0 * eps_m)[None, :] + between_end
+    sx0, sx1 = _offsets(
+        ends[..., 0].min(axis=2) - pad_end, ends[..., 1].max(axis=2) + pad_end, grid.cell_x_m
+    )
+    sy0, sy1 = _offsets(
+        ends[..., 2].min(axis=2) - pad_end, ends[..., 3].max(axis=2) + pad_end, grid.cell_y_m
+    )
     succ = np.stack([sx0, sx1, sy0, sy1], axis=-1).astype(np.int32)
+    th_end = float(theta(t[-1:])[0])
+    t_first = float(t[first])
+    turn_min = np.minimum(r_in * t_first, r_in * horizon_s)
+    turn_max = np.maximum(r_in * t_first, r_in * horizon_s)
     heading = np.stack(
         [
-            _heading_offsets((inputs[:, 2] - m_arr[2]) * tau_s / hp, lower=True),
-            _heading_offsets((inputs[:, 2] + m_arr[2]) * tau_s / hp, lower=False),
+            _heading_offsets((turn_min - th_end - 2.0 * eps_rad) / hp, lower=True),
+            _heading_offsets((turn_max + th_end + 2.0 * eps_rad) / hp, lower=False),
         ],
         axis=-1,
     ).astype(np.int32)
 
     # Swept tube: one box per sub-interval, then the hull of their cells per x column.
-    sub = boxes.reshape(grid.npsi, inputs.shape[0], -1, 4)[:, :, :n_t, :]
-    sub = sub.reshape(grid.npsi, inputs.shape[0], n_sub, per_sub, 4)
+    sub = boxes[:, :, :n_t, :].reshape(grid.npsi, m, n_sub, per_sub, 4)
     last = boxes[:, :, per_sub::per_sub, :][:, :, :, None, :]  # closing sample of each span
     sub = np.concatenate([sub, last], axis=3)
     lo_x, hi_x = sub[..., 0].min(axis=3), sub[..., 1].max(axis=3)
     lo_y, hi_y = sub[..., 2].min(axis=3), sub[..., 3].max(axis=3)
-    t_end = t[per_sub::per_sub]  # (n_sub,)
     # World velocity direction over each span, for every psi0 in the cell: [lo, hi] (rad).
     beta = np.arctan2(inputs[:, 1], inputs[:, 0])[None, :, None]
-    r = inputs[:, 2][None, :, None]
+    r = r_in[None, :, None]
     t_start = t[:-1:per_sub][None, None, :]
-    turn_lo = np.minimum(r * t_start, r * t_end[None, None, :]) - m_arr[2] * t_end[None, None, :]
-    turn_hi = np.maximum(r * t_start, r * t_end[None, None, :]) + m_arr[2] * t_end[None, None, :]
+    te = t_end[None, None, :]
+    turn_lo = np.minimum(r * t_start, r * te) - th_sub[None, None, :]
+    turn_hi = np.maximum(r * t_start, r * te) + th_sub[None, None, :]
     dir_lo = psi_lo[:, None, None] + beta + turn_lo
     dir_hi = psi_hi[:, None, None] + beta + turn_hi
-    dev = np.stack([deviation(te) for te in t_end], axis=-1)[None]  # (1, m, n_sub)
+    dev = dev_sub[None]  # (1, m, n_sub)
     between = speed[None, :, None] * dt / 2.0
     pad_x = dev + np.where(_contains_angle(dir_lo, dir_hi, 0.5 * math.pi), between, 0.0)
     pad_y = dev + np.where(_contains_angle(dir_lo, dir_hi, 0.0), between, 0.0)
@@ -267,34 +350,116 @@ def build_tables(
     tube_n = bx1.max(axis=2) - tube_x0 + 1
     c_max = int(tube_n.max())
     big = np.iinfo(np.int32).max
-    tube_y = np.empty((grid.npsi, inputs.shape[0], c_max, 2), dtype=np.int32)
+    tube_y = np.empty((grid.npsi, m, c_max, 2), dtype=np.int32)
     for c in range(c_max):
         col = (tube_x0 + c)[..., None]
         covers = (bx0 <= col) & (col <= bx1)
         tube_y[..., c, 0] = np.where(covers, by0, big).min(axis=2)
         tube_y[..., c, 1] = np.where(covers, by1, -big).max(axis=2)
-    # Columns past a tube's end are never read; keep them harmless.
     unused = np.arange(c_max)[None, None, :] >= tube_n[..., None]
-    tube_y[unused] = 0
+    tube_y[unused] = 0  # columns past a tube's end are never read
+
+    # Headings the hull may take over the whole period, per yaw-rate value.
+    yaw_values = np.unique(r_in)
+    turn_all_lo = np.minimum(0.0, yaw_values * horizon_s) - th_end
+    turn_all_hi = np.maximum(0.0, yaw_values * horizon_s) + th_end
+    hull_psi = np.stack(
+        [
+            psi_lo[:, None] + turn_all_lo[None, :],
+            psi_hi[:, None] + turn_all_hi[None, :],
+        ],
+        axis=-1,
+    )
+    return _ClassTables(
+        succ=succ,
+        heading=heading,
+        tube_x0=tube_x0.astype(np.int32),
+        tube_n=tube_n.astype(np.int32),
+        tube_y=tube_y,
+        hull_psi=hull_psi,
+    )
+
+
+def build_tables(
+    grid: Grid,
+    inputs: FloatArray,
+    tau_s: float,
+    budget: DeviationBudget,
+    late_s: float = 0.0,
+    n_sub: int = 16,
+    per_sub: int = 4,
+) -> Tables:
+    """Compute the offset tables of both classes (no cache).
+
+    Args:
+        grid: The state grid.
+        inputs: Inputs (u m/s, v m/s, r rad/s), shape (m, 3).
+        tau_s: Command period (s).
+        budget: Deviation from the exact arc per class, and the estimate's error.
+        late_s: Extra time a command may be held (s); bounds hold up to tau + late.
+        n_sub: Number of sub-intervals of [0, tau + late] in the swept tube.
+        per_sub: Time samples per sub-interval (the padding shrinks with more).
+
+    Raises:
+        GridError: Inputs of the wrong shape, non-positive tau, negative late.
+    """
+    arr = _check_inputs(inputs, tau_s, late_s)
+    horizon = tau_s + late_s
+    eps_m = float(budget.estimation_position_m)
+    eps_rad = float(budget.estimation_heading_rad)
+    speed = np.hypot(arr[:, 0], arr[:, 1])
+    per_class = []
+    n_budget = int(getattr(budget, "n_classes", 2))
+    for cls in range(N_CLASSES):
+        # Each class contains the ones below it (a change is never budgeted below a
+        # hold, a first command never below a change); a budget without a class of its
+        # own for first commands lends them the change class.
+        classes = tuple(range(min(cls, n_budget - 1) + 1))
+
+        def rho(t: FloatArray, classes: tuple[int, ...] = classes) -> FloatArray:
+            out: FloatArray = np.max(
+                [budget.position_bound_m(c, speed, t) for c in classes], axis=0
+            )
+            return out
+
+        def theta(t: FloatArray, classes: tuple[int, ...] = classes) -> FloatArray:
+            out: FloatArray = np.max([budget.heading_bound_rad(c, t) for c in classes], axis=0)
+            return out
+
+        per_class.append(
+            _class_tables(grid, arr, tau_s, horizon, rho, theta, eps_m, eps_rad, n_sub, per_sub)
+        )
+    c_max = max(pc.tube_y.shape[2] for pc in per_class)
+    tube_y = np.zeros((N_CLASSES, grid.npsi, arr.shape[0], c_max, 2), dtype=np.int32)
+    for cls, pc in enumerate(per_class):
+        tube_y[cls, :, :, : pc.tube_y.shape[2]] = pc.tube_y
+    yaw_values = np.unique(arr[:, 2])
     return Tables(
         grid=grid,
-        inputs=inputs,
+        inputs=arr,
         tau_s=float(tau_s),
-        margin=m_arr,
-        succ=np.ascontiguousarray(succ),
-        heading=np.ascontiguousarray(heading),
-        tube_x0=np.ascontiguousarray(tube_x0.astype(np.int32)),
-        tube_n=np.ascontiguousarray(tube_n.astype(np.int32)),
+        late_s=float(late_s),
+        succ=np.ascontiguousarray(np.stack([pc.succ for pc in per_class])),
+        heading=np.ascontiguousarray(np.stack([pc.heading for pc in per_class])),
+        tube_x0=np.ascontiguousarray(np.stack([pc.tube_x0 for pc in per_class])),
+        tube_n=np.ascontiguousarray(np.stack([pc.tube_n for pc in per_class])),
         tube_y=np.ascontiguousarray(tube_y),
-        key=_key(grid, inputs, tau_s, m_arr, n_sub, per_sub),
+        hull_psi=np.ascontiguousarray(np.stack([pc.hull_psi for pc in per_class])),
+        yaw_index=np.searchsorted(yaw_values, arr[:, 2]).astype(np.int32),
+        budget_key=budget.digest(),
+        key=_key(grid, arr, tau_s, late_s, budget.digest(), n_sub),
     )
+
+
+_TABLE_FIELDS = ("succ", "heading", "tube_x0", "tube_n", "tube_y", "hull_psi", "yaw_index")
 
 
 def tables_for(
     grid: Grid,
     inputs: FloatArray,
     tau_s: float,
-    margin: FloatArray | None = None,
+    budget: DeviationBudget,
+    late_s: float = 0.0,
     cache_dir: Path | None = None,
     use_cache: bool = True,
 ) -> tuple[Tables, bool]:
@@ -303,50 +468,42 @@ def tables_for(
     Args:
         grid: The state grid.
         inputs: Inputs, shape (m, 3).
-        tau_s: Sampling time (s).
-        margin: Tracking-error bound, shape (3,), or None for zeros.
+        tau_s: Command period (s).
+        budget: The deviation budget.
+        late_s: Extra time a command may be held (s).
         cache_dir: Cache folder; :func:`default_cache_dir` if None.
         use_cache: False computes fresh tables and writes nothing.
 
     Returns:
         The tables and whether they came from the cache.
     """
-    m_arr = np.zeros(3) if margin is None else np.asarray(margin, dtype=np.float64).reshape(3)
-    inputs = np.ascontiguousarray(inputs, dtype=np.float64)
+    arr = _check_inputs(inputs, tau_s, late_s)
     if not use_cache:
-        return build_tables(grid, inputs, tau_s, m_arr), False
+        return build_tables(grid, arr, tau_s, budget, late_s), False
     folder = default_cache_dir() if cache_dir is None else Path(cache_dir)
-    path = folder / f"tables-{_key(grid, inputs, tau_s, m_arr, 16, 4)}.npz"
+    key = _key(grid, arr, tau_s, late_s, budget.digest(), 16)
+    path = folder / f"tables-{key}.npz"
     if path.is_file():
         try:
             with np.load(path) as data:
-                tables = Tables(
-                    grid=grid,
-                    inputs=inputs,
-                    tau_s=float(tau_s),
-                    margin=m_arr,
-                    succ=data["succ"],
-                    heading=data["heading"],
-                    tube_x0=data["tube_x0"],
-                    tube_n=data["tube_n"],
-                    tube_y=data["tube_y"],
-                    key=str(data["key"]),
-                )
-            if tables.succ.shape == (grid.npsi, inputs.shape[0], 4) and tables.key == path.stem[7:]:
+                fields = {name: data[name] for name in _TABLE_FIELDS}
+                stored_key = str(data["key"])
+            tables = Tables(
+                grid=grid,
+                inputs=arr,
+                tau_s=float(tau_s),
+                late_s=float(late_s),
+                budget_key=budget.digest(),
+                key=stored_key,
+                **fields,
+            )
+            if tables.succ.shape == (N_CLASSES, grid.npsi, arr.shape[0], 4) and stored_key == key:
                 return tables, True
-        except (OSError, KeyError, ValueError):
+        except (OSError, KeyError, ValueError, TypeError):
             pass  # a corrupt or stale cache entry is rebuilt below
-    tables = build_tables(grid, inputs, tau_s, m_arr)
+    tables = build_tables(grid, arr, tau_s, budget, late_s)
     folder.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(f".{os.getpid()}.tmp.npz")
-    np.savez(
-        tmp,
-        succ=tables.succ,
-        heading=tables.heading,
-        tube_x0=tables.tube_x0,
-        tube_n=tables.tube_n,
-        tube_y=tables.tube_y,
-        key=np.array(tables.key),
-    )
+    np.savez(tmp, key=np.array(tables.key), **{n: getattr(tables, n) for n in _TABLE_FIELDS})
     os.replace(tmp, path)
     return tables, False

@@ -1,13 +1,16 @@
 """What one decision assumed for the next tau seconds, and judges of poses against it.
 
-A decision at cell (i0, j0, k0) with input q relies on three promises of the
-abstraction (abstraction.py; Reissig, Weber and Rungger 2016, IEEE TAC 62(4)):
+A decision at cell (i0, j0, k0) with reference p in force and input q relies on three
+promises of the abstraction (abstraction.py; Reissig, Weber and Rungger 2016, IEEE TAC
+62(4)), read from the tables of its class (0 when q holds p, 1 for a change, 2 for a first
+decision):
 
-- tube: over [0, tau] the centre stays in the swept tube's cells, x columns
+- tube: over [0, tau + late] the centre stays in the swept tube's cells, x columns
   i0 + tube_x0 + c with y rows j0 + tube_y[c, 0] .. j0 + tube_y[c, 1];
-- successor: at tau the state is in the cells i0 + ox_min .. i0 + ox_max,
-  j0 + oy_min .. j0 + oy_max, headings k0 + ok_min .. k0 + ok_max (mod npsi);
-- descent: the value there is strictly below V(i0, j0, k0).
+- successor: at the next decision (tau .. tau + late) the state is in the cells
+  i0 + ox_min .. i0 + ox_max, j0 + oy_min .. j0 + oy_max, headings
+  k0 + ok_min .. k0 + ok_max (mod npsi);
+- descent: the value there, with q in force, is strictly below the decision's value.
 
 :class:`DecisionContract` holds these for one decision; its methods judge a
 trajectory (N, 3) of poses (x m, y m, psi rad) at once. The runtime monitor,
@@ -34,6 +37,8 @@ IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]
 
 __all__ = ["DecisionContract", "cells_of"]
+
+_ANY_VALUE = 2**30
 
 
 def cells_of(grid: Grid, poses: FloatArray) -> tuple[IntArray, IntArray, IntArray]:
@@ -68,13 +73,16 @@ class DecisionContract:
         input_index: Chosen row q of the controller's inputs.
         nu_ref: The chosen input (u m/s, v m/s, r rad/s), shape (3,).
         tau_s: How long the decision holds (s).
-        value: V at the start cell (steps to target); -1 when the cell is losing.
+        late_s: How much longer it may hold and stay covered (s).
+        budget_class: 0 (hold), 1 (change) or 2 (a first decision).
+        value: The decision's value (steps to target); -1 when nothing was safe; 2**30
+            on a first decision (its end must win, at any value).
         tube_x0: First x offset of the tube (cells, relative to i0).
         tube_y: y offset range per tube column, shape (n_columns, 2), inclusive:
             column c is x offset tube_x0 + c.
         succ: Successor box (ox_min, ox_max, oy_min, oy_max), cells relative to (i0, j0).
         heading: Successor heading offsets (ok_min, ok_max), cells relative to k0.
-        values: The controller's V (read-only), shape (nx, ny, npsi), -1 losing.
+        controller: The controller (values of the successor layer q).
     """
 
     grid: Grid
@@ -82,45 +90,66 @@ class DecisionContract:
     input_index: int
     nu_ref: FloatArray
     tau_s: float
+    late_s: float
+    budget_class: int
     value: int
     tube_x0: int
     tube_y: NDArray[np.int32]
     succ: tuple[int, int, int, int]
     heading: tuple[int, int]
-    values: NDArray[np.int32]
+    controller: Controller
 
     @staticmethod
     def of(
-        controller: Controller, cell: tuple[int, int, int], input_index: int
+        controller: Controller,
+        cell: tuple[int, int, int],
+        input_index: int,
+        reference_index: int,
+        first: bool,
     ) -> DecisionContract:
         """Build the contract of choosing input `input_index` at `cell`.
 
+        Args:
+            controller: The controller the decision was taken with.
+            cell: The decision's cell (i, j, k).
+            input_index: The chosen input.
+            reference_index: The input in force when the decision was taken.
+            first: A first decision (every candidate budgeted as a change).
+
         Raises:
-            SymbolicError: The cell is outside the grid or the input index out of range.
+            SymbolicError: The cell is outside the grid or an input index out of range.
         """
         grid = controller.grid
         i0, j0, k0 = (int(c) for c in cell)
         if not (0 <= i0 < grid.nx and 0 <= j0 < grid.ny and 0 <= k0 < grid.npsi):
             raise SymbolicError(f"cell {cell!r} is outside the grid {grid.shape!r}")
         t = controller.tables
-        if not 0 <= input_index < t.n_inputs:
-            raise SymbolicError(f"input index {input_index!r} not in [0, {t.n_inputs})")
+        if not (0 <= input_index < t.n_inputs and 0 <= reference_index < t.n_inputs):
+            raise SymbolicError(
+                f"input indices {input_index!r}, {reference_index!r} not in [0, {t.n_inputs})"
+            )
         q = int(input_index)
-        n = int(t.tube_n[k0, q])
-        s = t.succ[k0, q]
-        h = t.heading[q]
+        c = 2 if first else (0 if q == reference_index else 1)
+        n = int(t.tube_n[c, k0, q])
+        s = t.succ[c, k0, q]
+        h = t.heading[c, q]
         return DecisionContract(
             grid=grid,
             cell=(i0, j0, k0),
             input_index=q,
             nu_ref=t.inputs[q].copy(),
             tau_s=t.tau_s,
-            value=int(controller.values[i0, j0, k0]),
-            tube_x0=int(t.tube_x0[k0, q]),
-            tube_y=t.tube_y[k0, q, :n].copy(),
+            late_s=t.late_s,
+            budget_class=c,
+            # A first decision promises only a winning end (any value).
+            value=_ANY_VALUE
+            if first
+            else controller.cell_decision_value((i0, j0, k0), reference_index, False),
+            tube_x0=int(t.tube_x0[c, k0, q]),
+            tube_y=t.tube_y[c, k0, q, :n].copy(),
             succ=(int(s[0]), int(s[1]), int(s[2]), int(s[3])),
             heading=(int(h[0]), int(h[1])),
-            values=controller.values,
+            controller=controller,
         )
 
     # ------------------------------------------------------------------ cell sets (metres)
@@ -143,12 +172,14 @@ class DecisionContract:
         g = self.grid
         i0, j0, _ = self.cell
         ox0, ox1, oy0, oy1 = self.succ
-        return np.array([
-            g.x_min_m + (i0 + ox0) * g.cell_x_m,
-            g.x_min_m + (i0 + ox1 + 1) * g.cell_x_m,
-            g.y_min_m + (j0 + oy0) * g.cell_y_m,
-            g.y_min_m + (j0 + oy1 + 1) * g.cell_y_m,
-        ])
+        return np.array(
+            [
+                g.x_min_m + (i0 + ox0) * g.cell_x_m,
+                g.x_min_m + (i0 + ox1 + 1) * g.cell_x_m,
+                g.y_min_m + (j0 + oy0) * g.cell_y_m,
+                g.y_min_m + (j0 + oy1 + 1) * g.cell_y_m,
+            ]
+        )
 
     # ------------------------------------------------------------------ judges
 
@@ -216,12 +247,9 @@ class DecisionContract:
         return out
 
     def end_values(self, poses: FloatArray) -> IntArray:
-        """Return V at each pose's cell, (N, 3) -> (N,); -1 outside the grid or losing."""
+        """Return V (chosen input in force) at each pose's cell, (N, 3) -> (N,); -1 losing."""
         i, j, k = cells_of(self.grid, poses)
-        g = self.grid
-        ok = (i >= 0) & (i < g.nx) & (j >= 0) & (j < g.ny)
-        out = np.full(len(i), -1, dtype=np.int64)
-        out[ok] = self.values[i[ok], j[ok], k[ok]]
+        out: IntArray = self.controller.values_at(self.input_index, i, j, k)
         return out
 
     def value_decreases(self, poses: FloatArray) -> BoolArray:

@@ -1,9 +1,10 @@
-"""The synthesized controller: the value function plus the offset tables.
+"""The synthesized controller: winning sets and values over (cell, reference) plus tables.
 
-Online it only looks up: the cell of the measured state (static quantizer, Reissig et
-al. 2016), then every input whose swept tube is free and whose successors all have a
-strictly smaller value. A state outside the grid or the winning set gets no input and
-no exception, as in SCOTS' `StaticController` lookup but without throwing.
+Online it only looks up: the cell of the estimated state (static quantizer, Reissig et
+al. 2016) and the reference in force p (the previous command), then every input within
+one grid step of p whose swept tube is free and whose successors all win with a
+strictly smaller value. A state outside the grid or the winning set gets no input and no
+exception, as in SCOTS' `StaticController` lookup but without throwing.
 """
 
 from __future__ import annotations
@@ -11,23 +12,32 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 from dataclasses import asdict, dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
-from hil.controllers.symbolic.abstraction import Tables
-from hil.controllers.symbolic.errors import ControllerFileError
+from hil.controllers.symbolic.abstraction import N_CLASSES, Tables
+from hil.controllers.symbolic.errors import ControllerFileError, SymbolicError
 from hil.controllers.symbolic.grid import Grid
-from hil.controllers.symbolic.kernels import safe_input_indices
+from hil.controllers.symbolic.kernels import (
+    layer_values,
+    safe_input_indices,
+    state_value,
+    state_values,
+)
+from hil.controllers.symbolic.lattice import InputLattice
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 I32Array = NDArray[np.int32]
+U64Array = NDArray[np.uint64]
 
 __all__ = ["Controller", "SynthesisStats"]
 
-_FORMAT = "hil-symbolic-controller-1"
+_FORMAT = "hil-symbolic-controller-2"
+_TABLE_FIELDS = ("succ", "heading", "tube_x0", "tube_n", "tube_y", "hull_psi", "yaw_index")
 
 
 @dataclass(frozen=True, slots=True)
@@ -35,10 +45,11 @@ class SynthesisStats:
     """Figures of one synthesis.
 
     Attributes:
-        levels: Fixed-point iterations until no cell joined (the largest value).
+        levels: Fixed-point iterations until no state joined (the largest value).
         seconds: Wall time of the synthesis for this layout (s), tables excluded.
-        winning_cells: Cells with a finite value, target included.
-        free_cells: Obstacle-free cells (all headings).
+        winning_cells: Cells winning from rest (reference zero), target included.
+        free_cells: States (cell, heading cell) the hull may occupy at rest: inside the
+            arena, off the obstacles, the centre off the inflated obstacles.
         target_cells: Cells in the target (all headings).
         peak_bytes: Largest memory the synthesis held at once (bytes, traced).
         threads: Threads the kernel ran on.
@@ -54,39 +65,56 @@ class SynthesisStats:
 
     @property
     def winning_fraction(self) -> float:
-        """Return winning cells over free cells (0 with no free cell)."""
+        """Return winning cells from rest over free cells (0 with no free cell)."""
         return self.winning_cells / self.free_cells if self.free_cells else 0.0
 
 
 class Controller:
-    """A reach-avoid controller on a grid: V plus the abstraction's offset tables.
+    """A reach-avoid controller over (cell, reference in force).
 
     Args:
         tables: The abstraction the controller was synthesized on.
-        values: V, shape (nx, ny, npsi) indexed [i, j, k]: steps to the target, -1 losing.
-        obstacles: Obstacle cells, shape (nx, ny) indexed [i, j].
-        stats: Figures of the synthesis.
+        lattice: The inputs' one-step neighbourhoods.
+        winning: Winning bits, shape (nx + 2 px, npsi + 2 ph, m, nw + 2 pw).
+        planes: Value bit planes, shape (nx, npsi, m, nw, n_planes).
+        viable: Tube-free bits per class, shape (3, nx, npsi, m, nw).
+        pads: (px, ph, pw) of `winning`.
+        obstacles: Cells touching an inflated obstacle, shape (nx, ny) (pictures).
+        stats: Figures of the synthesis; `winning_cells` is filled in here.
     """
 
     def __init__(
-        self, tables: Tables, values: I32Array, obstacles: BoolArray, stats: SynthesisStats
+        self,
+        tables: Tables,
+        lattice: InputLattice,
+        winning: U64Array,
+        planes: U64Array,
+        viable: U64Array,
+        pads: I32Array,
+        obstacles: BoolArray,
+        stats: SynthesisStats,
     ) -> None:
-        grid = tables.grid
-        if values.shape != grid.shape or obstacles.shape != (grid.nx, grid.ny):
-            raise ControllerFileError(
-                f"value shape {values.shape!r} / obstacle shape {obstacles.shape!r} "
-                f"do not match grid {grid.shape!r}"
-            )
         self._tables = tables
-        self._values = np.ascontiguousarray(values, dtype=np.int32)
-        self._values.flags.writeable = False
+        self._lattice = lattice
+        self._W = winning
+        self._planes = planes
+        self._viable = viable
+        self._pads = np.ascontiguousarray(pads, dtype=np.int32)
         self._obstacles = np.ascontiguousarray(obstacles, dtype=bool)
         self._obstacles.flags.writeable = False
-        prefix = np.zeros((grid.nx, grid.ny + 1), dtype=np.int32)
-        np.cumsum(self._obstacles, axis=1, out=prefix[:, 1:])
-        self._prefix = prefix
         self._out = np.empty(tables.n_inputs, dtype=np.int32)
-        self.stats = stats
+        self._best = np.empty(1, dtype=np.int32)
+        self.rest_index = lattice.nearest(np.zeros(3))
+        winning_rest = int(np.count_nonzero(self.layer_values(self.rest_index) >= 0))
+        self.stats = SynthesisStats(
+            stats.levels,
+            stats.seconds,
+            winning_rest,
+            stats.free_cells,
+            stats.target_cells,
+            stats.peak_bytes,
+            stats.threads,
+        )
 
     # ------------------------------------------------------------------ properties
 
@@ -101,62 +129,140 @@ class Controller:
         return self._tables
 
     @property
+    def lattice(self) -> InputLattice:
+        """Return the inputs' one-step neighbourhoods."""
+        return self._lattice
+
+    @property
     def inputs(self) -> FloatArray:
         """Return all inputs, shape (m, 3)."""
         return self._tables.inputs
 
-    @property
+    @cached_property
     def values(self) -> I32Array:
-        """Return V (read-only), shape (nx, ny, npsi); -1 marks losing cells."""
-        return self._values
+        """Return V from rest (reference zero in force), shape (nx, ny, npsi); -1 losing."""
+        out = self.layer_values(self.rest_index)
+        out.flags.writeable = False
+        return out
+
+    def layer_values(self, previous: int) -> I32Array:
+        """Return V with reference `previous` in force, shape (nx, ny, npsi); -1 losing."""
+        out: I32Array = layer_values(self._W, self._planes, self._pads, previous, self.grid.ny)
+        return out
 
     @property
     def obstacles(self) -> BoolArray:
-        """Return the obstacle cells (read-only), shape (nx, ny)."""
+        """Return the cells touching an inflated obstacle (read-only), shape (nx, ny)."""
         return self._obstacles
 
     @property
     def has_winning_start(self) -> bool:
-        """Return True when some cell outside the target is winning."""
+        """Return True when some cell outside the target wins from rest."""
         return self.stats.winning_cells > self.stats.target_cells
+
+    def reference_index(self, previous: int | None) -> int:
+        """Return the input index of the reference in force (`None`: at rest)."""
+        return self.rest_index if previous is None else int(previous)
 
     # ------------------------------------------------------------------ lookups
 
-    def value(self, state: Iterable[float]) -> float:
-        """Return V at the state's cell (steps of tau to the target); inf if not winning."""
+    def cell_value(self, cell: tuple[int, int, int], previous: int | None = None) -> int:
+        """Return V of a cell with reference `previous` in force; -1 if losing."""
+        i, j, k = cell
+        p = self.reference_index(previous)
+        return int(state_value(self._W, self._planes, self._pads, p, i, j, k))
+
+    def value(self, state: Iterable[float], previous: int | None = None) -> float:
+        """Return V at the state's cell (periods to the target); inf if not winning."""
         cell = self.grid.cell_of(state)
         if cell is None:
             return math.inf
-        v = int(self._values[cell])
+        v = self.cell_value(cell, previous)
         return math.inf if v < 0 else float(v)
 
-    def is_winning(self, state: Iterable[float]) -> bool:
-        """Return True when the state lies in a winning cell (the target included)."""
-        cell = self.grid.cell_of(state)
-        return cell is not None and int(self._values[cell]) >= 0
+    def is_winning(self, state: Iterable[float], previous: int | None = None) -> bool:
+        """Return True when the state's cell wins with `previous` in force (target included)."""
+        return math.isfinite(self.value(state, previous))
 
-    def safe_input_indices_at(self, cell: tuple[int, int, int]) -> I32Array:
-        """Return the indices into :attr:`inputs` of the safe inputs at a cell, shape (n,)."""
+    def safe_input_indices_at(
+        self, cell: tuple[int, int, int], previous: int | None = None, first: bool = False
+    ) -> I32Array:
+        """Return the indices into :attr:`inputs` of the safe inputs at a cell, shape (n,).
+
+        Args:
+            cell: The cell (i, j, k).
+            previous: Index of the reference in force; None: at rest.
+            first: The run's first command, with the vessel possibly still moving:
+                every candidate is budgeted as a change (class 1) and must only lead
+                into the winning set.
+        """
         t = self._tables
         i, j, k = cell
-        if not (0 <= i < self.grid.nx and 0 <= j < self.grid.ny and 0 <= k < self.grid.npsi):
+        g = self.grid
+        if not (0 <= i < g.nx and 0 <= j < g.ny and 0 <= k < g.npsi):
             return np.empty(0, dtype=np.int32)
         n = safe_input_indices(
-            self._values,
-            self._prefix,
+            self._W,
+            self._planes,
+            self._viable,
+            self._pads,
             t.succ,
             t.heading,
-            t.tube_x0,
-            t.tube_n,
-            t.tube_y,
+            self._lattice.neighbours,
+            self._lattice.n_neighbours,
+            g.ny,
+            self.reference_index(previous),
             i,
             j,
             k,
+            first,
             self._out,
+            self._best,
         )
         return self._out[:n].copy()
 
-    def safe_inputs(self, state: Iterable[float]) -> FloatArray:
+    def decision_value(
+        self, state: Iterable[float], previous: int | None = None, first: bool = False
+    ) -> float:
+        """Return the value a decision at `state` works with; inf when nothing is safe.
+
+        V of the state's cell with `previous` in force; for a first decision (see
+        :meth:`safe_input_indices_at`) 1 + the least largest successor value over the
+        safe inputs, since the state need not win with `previous` held.
+        """
+        cell = self.grid.cell_of(state)
+        if cell is None:
+            return math.inf
+        v = self.cell_decision_value(cell, previous, first)
+        return math.inf if v < 0 else float(v)
+
+    def cell_decision_value(
+        self, cell: tuple[int, int, int], previous: int | None = None, first: bool = False
+    ) -> int:
+        """Return :meth:`decision_value` of a cell; -1 when nothing is safe there."""
+        if not first:
+            return self.cell_value(cell, previous)
+        self.safe_input_indices_at(cell, previous, first=True)
+        return int(self._best[0])
+
+    def values_at(
+        self, layer: int, i: NDArray[np.int64], j: NDArray[np.int64], k: NDArray[np.int64]
+    ) -> NDArray[np.int64]:
+        """Return V of cells (i, j, k), each (N,), with input `layer` in force; -1 losing."""
+        g = self.grid
+        ii = np.asarray(i, dtype=np.int64)
+        jj = np.asarray(j, dtype=np.int64)
+        kk = np.mod(np.asarray(k, dtype=np.int64), g.npsi)
+        ok = (ii >= 0) & (ii < g.nx) & (jj >= 0) & (jj < g.ny)
+        out = np.full(ii.shape[0], -1, dtype=np.int64)
+        out[ok] = state_values(
+            self._W, self._planes, self._pads, int(layer), ii[ok], jj[ok], kk[ok]
+        )
+        return out
+
+    def safe_inputs(
+        self, state: Iterable[float], previous: int | None = None, first: bool = False
+    ) -> FloatArray:
         """Return every safe input at the state, shape (n, 3) (u m/s, v m/s, r rad/s).
 
         Empty (shape (0, 3)) outside the grid, outside the winning set and in the target
@@ -165,17 +271,15 @@ class Controller:
         cell = self.grid.cell_of(state)
         if cell is None:
             return np.empty((0, 3))
-        out: FloatArray = self.inputs[self.safe_input_indices_at(cell)]
+        out: FloatArray = self.inputs[self.safe_input_indices_at(cell, previous, first)]
         return out
 
     # ------------------------------------------------------------------ files
 
     def save(self, path: str | Path) -> None:
-        """Write the controller to a compressed .npz file (V as int16 where it fits)."""
+        """Write the controller (tables, winning bits, values, tubes) to a compressed .npz."""
         t = self._tables
         g = self.grid
-        vmax = int(self._values.max())
-        values = self._values.astype(np.int16) if vmax < np.iinfo(np.int16).max else self._values
         with Path(path).open("wb") as fh:
             np.savez_compressed(
                 fh,
@@ -185,17 +289,15 @@ class Controller:
                     dtype=np.float64,
                 ),
                 inputs=t.inputs,
-                tau_s=np.array(t.tau_s),
-                margin=t.margin,
-                succ=t.succ,
-                heading=t.heading,
-                tube_x0=t.tube_x0,
-                tube_n=t.tube_n,
-                tube_y=t.tube_y,
-                key=np.array(t.key),
-                values=values,
+                timing=np.array([t.tau_s, t.late_s]),
+                keys=np.array([t.budget_key, t.key]),
+                winning=self._W,
+                planes=self._planes,
+                viable=self._viable,
+                pads=self._pads,
                 obstacles=np.packbits(self._obstacles, axis=None),
                 stats=np.array(list(asdict(self.stats).values()), dtype=np.float64),
+                **{name: getattr(t, name) for name in _TABLE_FIELDS},
             )
 
     @classmethod
@@ -213,30 +315,26 @@ class Controller:
                     )
                 gx = data["grid"]
                 grid = Grid(
-                    float(gx[0]),
-                    float(gx[1]),
-                    float(gx[2]),
-                    float(gx[3]),
-                    int(gx[4]),
-                    int(gx[5]),
-                    int(gx[6]),
-                )
+                    float(gx[0]), float(gx[1]), float(gx[2]), float(gx[3]),
+                    int(gx[4]), int(gx[5]), int(gx[6]),
+                )  # fmt: skip
+                timing = data["timing"]
+                keys = data["keys"]
                 tables = Tables(
                     grid=grid,
                     inputs=np.ascontiguousarray(data["inputs"], dtype=np.float64),
-                    tau_s=float(data["tau_s"]),
-                    margin=data["margin"].astype(np.float64),
-                    succ=data["succ"].astype(np.int32),
-                    heading=data["heading"].astype(np.int32),
-                    tube_x0=data["tube_x0"].astype(np.int32),
-                    tube_n=data["tube_n"].astype(np.int32),
-                    tube_y=data["tube_y"].astype(np.int32),
-                    key=str(data["key"]),
+                    tau_s=float(timing[0]),
+                    late_s=float(timing[1]),
+                    budget_key=str(keys[0]),
+                    key=str(keys[1]),
+                    **{name: np.ascontiguousarray(data[name]) for name in _TABLE_FIELDS},
                 )
-                values = data["values"].astype(np.int32)
-                n_xy = grid.nx * grid.ny
+                winning = np.ascontiguousarray(data["winning"], dtype=np.uint64)
+                planes = np.ascontiguousarray(data["planes"], dtype=np.uint64)
+                viable = np.ascontiguousarray(data["viable"], dtype=np.uint64)
+                pads = np.ascontiguousarray(data["pads"], dtype=np.int32)
                 obstacles = (
-                    np.unpackbits(data["obstacles"], count=n_xy)
+                    np.unpackbits(data["obstacles"], count=grid.nx * grid.ny)
                     .astype(bool)
                     .reshape(grid.nx, grid.ny)
                 )
@@ -244,12 +342,19 @@ class Controller:
                 stats = SynthesisStats(
                     int(s[0]), float(s[1]), int(s[2]), int(s[3]), int(s[4]), int(s[5]), int(s[6])
                 )
+            m = tables.n_inputs
+            if (
+                tables.succ.shape != (N_CLASSES, grid.npsi, m, 4)
+                or planes.shape[:4] != (grid.nx, grid.npsi, m, (grid.ny + 63) // 64)
+                or viable.shape != (N_CLASSES, grid.nx, grid.npsi, m, (grid.ny + 63) // 64)
+                or winning.shape[2] != m
+            ):
+                raise ControllerFileError(f"{str(path)!r}: arrays do not fit the grid and inputs")
+            lattice = InputLattice.of(tables.inputs)
         except ControllerFileError:
             raise
         except (OSError, KeyError, ValueError, IndexError, TypeError) as err:
             raise ControllerFileError(f"cannot read controller {str(path)!r}: {err}") from err
-        if tables.succ.shape != (grid.npsi, tables.n_inputs, 4):
-            raise ControllerFileError(
-                f"{str(path)!r}: tables of shape {tables.succ.shape!r} do not fit the grid"
-            )
-        return cls(tables, values, obstacles, stats)
+        except SymbolicError as err:
+            raise ControllerFileError(f"cannot read controller {str(path)!r}: {err}") from err
+        return cls(tables, lattice, winning, planes, viable, pads, obstacles, stats)

@@ -1,4 +1,9 @@
-"""Compiled kernels of the controller: bit packing and the safe-input lookup."""
+"""Compiled kernels of the controller: bit packing, values and the safe-input lookup.
+
+The winning sets and values are the synthesis' bit layout (:mod:`sweep`): W of shape
+(nx + 2 px, npsi + 2 ph, m, nw + 2 pw), value bit planes of shape
+(nx, npsi, m, nw, n_planes) and viable words of shape (3, nx, npsi, m, nw).
+"""
 
 from __future__ import annotations
 
@@ -11,9 +16,10 @@ U64Array = NDArray[np.uint64]
 I32Array = NDArray[np.int32]
 BoolArray = NDArray[np.bool_]
 
-__all__ = ["pack_rows", "safe_input_indices"]
+__all__ = ["layer_values", "pack_rows", "safe_input_indices", "state_value", "state_values"]
 
 _ZERO = np.uint64(0)
+_ONE = np.uint64(1)
 
 
 @njit
@@ -30,64 +36,121 @@ def pack_rows(mask: BoolArray) -> U64Array:
 
 
 @njit
+def state_value(
+    W: U64Array, planes: U64Array, pads: I32Array, p: int, i: int, j: int, k: int
+) -> int:
+    """Return the value of state (cell (i, j, k), reference p); -1 if losing or off the grid."""
+    nx, npsi, _, nw, n_planes = planes.shape
+    if i < 0 or i >= nx or j < 0 or j >= 64 * nw:
+        return -1
+    kk = k % npsi
+    w = j >> 6
+    b = np.uint64(j & 63)
+    if (W[pads[0] + i, pads[1] + kk, p, pads[2] + w] >> b) & _ONE == _ZERO:
+        return -1
+    v = 0
+    for q in range(n_planes):
+        if (planes[i, kk, p, w, q] >> b) & _ONE != _ZERO:
+            v |= 1 << q
+    return v
+
+
+@njit
+def state_values(
+    W: U64Array,
+    planes: U64Array,
+    pads: I32Array,
+    p: int,
+    i: NDArray[np.int64],
+    j: NDArray[np.int64],
+    k: NDArray[np.int64],
+) -> NDArray[np.int64]:
+    """Return the values of states (i[n], j[n], k[n]) in layer p, shape (N,); -1 losing."""
+    out = np.empty(i.shape[0], dtype=np.int64)
+    for n in range(i.shape[0]):
+        out[n] = state_value(W, planes, pads, p, i[n], j[n], k[n])
+    return out
+
+
+@njit
+def layer_values(W: U64Array, planes: U64Array, pads: I32Array, p: int, ny: int) -> I32Array:
+    """Return the values of layer p, shape (nx, ny, npsi); -1 marks losing cells."""
+    nx, npsi = planes.shape[0], planes.shape[1]
+    out = np.full((nx, ny, npsi), -1, dtype=np.int32)
+    for i in range(nx):
+        for k in range(npsi):
+            for j in range(ny):
+                out[i, j, k] = state_value(W, planes, pads, p, i, j, k)
+    return out
+
+
+@njit
 def safe_input_indices(
-    V: NDArray[np.int32],
-    obstacle_prefix: I32Array,
+    W: U64Array,
+    planes: U64Array,
+    viable: U64Array,
+    pads: I32Array,
     succ: I32Array,
     heading: I32Array,
-    tube_x0: I32Array,
-    tube_n: I32Array,
-    tube_y: I32Array,
+    neighbours: I32Array,
+    n_neighbours: I32Array,
+    ny: int,
+    p: int,
     i: int,
     j: int,
     k: int,
+    first: bool,
     out: I32Array,
+    best: I32Array,
 ) -> int:
-    """Write the indices of the safe inputs at cell (i, j, k) to `out`; return how many.
+    """Write the safe inputs at cell (i, j, k) with reference p in force to `out`; return n.
 
-    Safe: the swept tube is obstacle-free and inside the grid, and every successor cell
-    is winning with a value strictly below V[i, j, k]. None at a losing or target cell.
-    obstacle_prefix[i, j] counts obstacle cells (i, 0 .. j-1), shape (nx, ny + 1).
+    Candidates are p (class 0, hold) and its neighbours (class 1, change); with `first`
+    (the run's first command, the vessel possibly moving) every candidate is class 2.
+    Safe: the tube is free (viable) and every successor cell is winning in the input's
+    layer with a value strictly below the state's (any value with `first`). None at a
+    losing or target state (unless `first`, where the state's own value is not used).
+    best[0] is set to 1 + the least, over the safe inputs, of their largest successor
+    value (the value a first decision earns), -1 with none.
     """
-    nx, ny, npsi = V.shape
-    vc = V[i, j, k]
-    n = 0
-    if vc <= 0:
+    npsi = planes.shape[1]
+    best[0] = -1
+    vc = state_value(W, planes, pads, p, i, j, k)
+    if not first and vc <= 0:
         return 0
-    for u in range(succ.shape[1]):
+    if vc == 0:
+        best[0] = 0
+        return 0  # in the target: hold position
+    limit = vc if (not first and vc > 0) else 1 << 30
+    n = 0
+    w = j >> 6
+    b = np.uint64(j & 63)
+    for c_idx in range(n_neighbours[p] + 1):
+        u = p if c_idx == 0 else neighbours[p, c_idx - 1]
+        cls = 2 if first else (0 if u == p else 1)
+        if (viable[cls, i, k, u, w] >> b) & _ONE == _ZERO:
+            continue
         ok_input = True
-        for ox in range(succ[k, u, 0], succ[k, u, 1] + 1):
-            ii = i + ox
-            if ii < 0 or ii >= nx:
-                ok_input = False
-                break
-            for oy in range(succ[k, u, 2], succ[k, u, 3] + 1):
+        worst = 0
+        for ox in range(succ[cls, k, u, 0], succ[cls, k, u, 1] + 1):
+            for oy in range(succ[cls, k, u, 2], succ[cls, k, u, 3] + 1):
                 jj = j + oy
                 if jj < 0 or jj >= ny:
                     ok_input = False
                     break
-                for ok in range(heading[u, 0], heading[u, 1] + 1):
-                    v = V[ii, jj, (k + ok) % npsi]
-                    if v < 0 or v >= vc:
+                for ok in range(heading[cls, u, 0], heading[cls, u, 1] + 1):
+                    v = state_value(W, planes, pads, u, i + ox, jj, (k + ok) % npsi)
+                    if v < 0 or v >= limit:
                         ok_input = False
                         break
+                    worst = max(worst, v)
                 if not ok_input:
                     break
             if not ok_input:
                 break
-        if not ok_input:
-            continue
-        for c in range(tube_n[k, u]):
-            ii = i + tube_x0[k, u] + c
-            j0 = j + tube_y[k, u, c, 0]
-            j1 = j + tube_y[k, u, c, 1]
-            if ii < 0 or ii >= nx or j0 < 0 or j1 >= ny:
-                ok_input = False
-                break
-            if obstacle_prefix[ii, j1 + 1] - obstacle_prefix[ii, j0] != 0:
-                ok_input = False
-                break
         if ok_input:
             out[n] = u
             n += 1
+            if best[0] < 0 or worst + 1 < best[0]:
+                best[0] = worst + 1
     return n

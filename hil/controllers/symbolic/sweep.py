@@ -1,22 +1,31 @@
-"""Compiled frontier sweeps of the reach-avoid fixed point, 64 cells per machine word.
+"""Compiled frontier sweeps of the reach-avoid game over (cell, current reference).
 
-Layout: the winning set and its erosions live in one padded bit array
-E of shape (layers, nx + 2 px, npsi + 2 ph, nw + 2 pw) (uint64). Bit b of word
-pw + w in row (px + i, ph + k) is cell (i, j = 64 w + b, k). Layer h holds the winning
-bits eroded along y by width h + 1 (bit j set iff cells j .. j + h all win), so that a
-successor box [ox0, ox1] x [oy0, oy1] x [ok0, ok1] wins for 64 cells at once when
+The game's state is a grid cell plus the reference p the low level is tracking (the
+previous command); from (cell, p) the controller may command any u within one grid step
+per axis of p (:class:`~hil.controllers.symbolic.lattice.InputLattice`). Holding p is
+budgeted by the class-0 tables, a change by the class-1 tables, so with
 
-    AND over ox, ok of  E[oy1 - oy0, row (i + ox, k + ok)] shifted by oy0.
+    A_u = Pre0_u(W_u),   B_u = Pre1_u(W_u)   (tube free, successor box inside W_u)
 
-The padding removes every bounds check and modulo from the inner loop: rows outside
-the grid stay zero (not winning: the tank walls), and heading rows k < 0 or k >= npsi
-are copies of the rows they wrap to. The free bits F (obstacle-free cells), eroded the
-same way, have shape (layers, nx + 2 px, nw + 2 pw) and test the swept tube.
+the winning sets of the layers satisfy  W_p = A_p  union  (union over u in N(p) of B_u).
+Each level computes A_u and B_u once per input from the layer W_u they need (not once
+per (p, u) pair), then ORs B_u into the up to 26 neighbouring layers.
 
-The fixed point follows the frontier: after each level only rows within the stencil's
-reach of rows that changed are swept, and each row word stops at the first inputs that
-cover all its remaining candidates. Values are exact BFS levels (a cell joins at level
-L + 1 from the cells of level <= L), identical to the explicit fixed point.
+Layout: W has shape (3, nx + 2 px, npsi + 2 ph, m, nw + 2 pw) (uint64): bit b of word
+pw + w in row (px + i, ph + k) of layer p of W[0] is cell (i, j = 64 w + b, k); W[1] and
+W[2] are its erosions along y (cells j .. j + 1, j .. j + 3 all win), so that a run of up
+to 8 successor cells along y is two reads. The layers are the inner axis so that the up
+to 26 layers a B_u joins share cache lines. Padding rows stay
+zero (not winning: outside the grid), heading rows k < 0 or k >= npsi copy the rows they
+wrap to. A successor box [ox0, ox1] x [oy0, oy1] x [ok0, ok1] of 64 cells at once is the
+AND over rows (i + ox, k + ok) of their y-runs shifted by oy0. The tube test is precomputed per solve as
+"viable" words (the tube is free of cells blocked for the hull, :mod:`hull`), shape
+(2, nx, npsi, m, nw). Values (the level a state joined at) are kept as bit planes
+(nx, npsi, m, nw, n_planes): bit q of the value of a state is its bit in plane q.
+
+The fixed point follows the frontier: after each level only rows (u, i, k) whose
+successor boxes reach a row of W_u that changed are swept. Levels are exact BFS levels
+(a state joins at level L + 1 from the states of level <= L), as the dense solver.
 """
 
 from __future__ import annotations
@@ -29,9 +38,15 @@ from hil.core.jit import njit, njit_parallel
 
 U64Array = NDArray[np.uint64]
 I32Array = NDArray[np.int32]
-BoolArray = NDArray[np.bool_]
+U8Array = NDArray[np.uint8]
 
-__all__ = ["fixed_point_parallel", "fixed_point_serial", "init_bits", "viable_bits"]
+__all__ = [
+    "erode_free",
+    "fixed_point_parallel",
+    "fixed_point_serial",
+    "init_layers",
+    "viable_words",
+]
 
 _ZERO = np.uint64(0)
 _ONE = np.uint64(1)
@@ -45,85 +60,177 @@ def _shifted(lo: np.uint64, hi: np.uint64, s: np.uint64) -> np.uint64:
 
 
 @njit
-def _erode_row(E: U64Array, ip: int, kp: int, pw: int, nw: int) -> None:
-    """Recompute layers 1.. of row (ip, kp) from layer 0."""
-    for h in range(1, E.shape[0]):
+def erode_free(F0: U64Array, out: U64Array) -> None:
+    """Fill out (layers, rows, words) from F0 (rows, words): y-runs of free cells.
+
+    Layer h has bit j set iff bits j .. j + h of F0 all are (F0's last word pads).
+    """
+    n_rows, n_w = F0.shape
+    for r in range(n_rows):
+        for w in range(n_w):
+            out[0, r, w] = F0[r, w]
+    for h in range(1, out.shape[0]):
         q = h >> 6
         s = np.uint64(h & 63)
-        for wp in range(pw, pw + nw):
-            E[h, ip, kp, wp] = E[h - 1, ip, kp, wp] & _shifted(
-                E[0, ip, kp, wp + q], E[0, ip, kp, wp + q + 1], s
-            )
+        for r in range(n_rows):
+            for w in range(n_w):
+                if w + q + 1 < n_w:
+                    out[h, r, w] = out[h - 1, r, w] & _shifted(F0[r, w + q], F0[r, w + q + 1], s)
+                elif w + q < n_w:
+                    out[h, r, w] = out[h - 1, r, w] & (F0[r, w + q] >> s)
+                else:
+                    out[h, r, w] = _ZERO
 
 
 @njit
-def _copy_wraps(E: U64Array, ip: int, k: int, npsi: int, ph: int) -> None:
-    """Copy row (ip, ph + k) to the padding rows that stand for the same heading."""
-    kp = ph + k
-    n_kp = E.shape[2]
-    other = kp - npsi * ((kp) // npsi)
-    while other < n_kp:
-        if other != kp:
-            for h in range(E.shape[0]):
-                for wp in range(E.shape[3]):
-                    E[h, ip, other, wp] = E[h, ip, kp, wp]
-        other += npsi
-
-
-@njit
-def init_bits(
-    goal_words: U64Array, free_words: U64Array, E: U64Array, F: U64Array, px: int, pw: int
-) -> None:
-    """Fill E (goal, every heading) and F (free cells) from packed rows of shape (nx, nw)."""
-    nx, nw = goal_words.shape
-    for i in range(nx):
-        for w in range(nw):
-            F[0, px + i, pw + w] = free_words[i, w]
-            for kp in range(E.shape[2]):
-                E[0, px + i, kp, pw + w] = goal_words[i, w]
-    for h in range(1, F.shape[0]):
-        q = h >> 6
-        s = np.uint64(h & 63)
-        for ip in range(px, px + nx):
-            for wp in range(pw, pw + nw):
-                F[h, ip, wp] = F[h - 1, ip, wp] & _shifted(
-                    F[0, ip, wp + q], F[0, ip, wp + q + 1], s
-                )
-    for ip in range(px, px + nx):
-        for kp in range(E.shape[2]):
-            _erode_row(E, ip, kp, pw, nw)
-
-
-@njit
-def viable_bits(
-    F: U64Array,
-    core_x: I32Array,
-    core_n: I32Array,
-    core_y: I32Array,
+def viable_words(
+    Fe: U64Array,
+    cls: int,
+    k: int,
+    u: int,
+    tube_x0: I32Array,
+    tube_n: I32Array,
+    tube_y: I32Array,
     px: int,
     pw: int,
     out: U64Array,
 ) -> None:
-    """Fill out (nx, npsi, nw): free cells whose tube core is free (the rest can never win).
+    """Fill out[cls, :, k, u, :]: cells whose tube (class cls, input u, heading k) is free.
 
-    core_x[k, :core_n[k]] are x offsets and core_y[k, c] = (y0, y1) y offsets of the cells
-    that every input's tube from heading k covers; an obstacle there blocks all inputs.
+    Fe holds the free cells eroded along y, shape (layers, nx + 2 px, nw + 2 pw).
     """
-    nx, npsi, nw = out.shape
+    nx = out.shape[1]
+    nw = out.shape[4]
+    x0 = tube_x0[cls, k, u]
     for i in range(nx):
         ip = px + i
+        for w in range(nw):
+            wp = pw + w
+            acc = ~_ZERO
+            for c in range(tube_n[cls, k, u]):
+                y0 = tube_y[cls, k, u, c, 0]
+                h = tube_y[cls, k, u, c, 1] - y0
+                a = wp + (y0 >> 6)
+                s = np.uint64(y0 & 63)
+                x = ip + x0 + c
+                acc &= _shifted(Fe[h, x, a], Fe[h, x, a + 1], s)
+                if acc == _ZERO:
+                    break
+            out[cls, i, k, u, w] = acc
+
+
+@njit
+def _copy_wraps(W: U64Array, p: int, ip: int, k: int, npsi: int, ph: int) -> None:
+    """Copy row (ip, ph + k) of layer p to the padding rows that stand for the same heading."""
+    kp = ph + k
+    n_kp = W.shape[2]
+    other = kp - npsi * (kp // npsi)
+    while other < n_kp:
+        if other != kp:
+            for e in range(W.shape[0]):
+                for wp in range(W.shape[4]):
+                    W[e, ip, other, p, wp] = W[e, ip, kp, p, wp]
+        other += npsi
+
+
+@njit
+def _erode(W: U64Array, p: int, ip: int, kp: int) -> None:
+    """Recompute the y-erosions of row (ip, kp) of layer p: W[1] pairs, W[2] quadruples.
+
+    Bit j of W[1] is set iff cells j, j + 1 win; of W[2] iff cells j .. j + 3 win.
+    """
+    n_w = W.shape[4]
+    for wp in range(n_w - 1):
+        W[1, ip, kp, p, wp] = W[0, ip, kp, p, wp] & _shifted(
+            W[0, ip, kp, p, wp], W[0, ip, kp, p, wp + 1], _ONE
+        )
+    W[1, ip, kp, p, n_w - 1] = _ZERO
+    for wp in range(n_w - 1):
+        W[2, ip, kp, p, wp] = W[1, ip, kp, p, wp] & _shifted(
+            W[1, ip, kp, p, wp], W[1, ip, kp, p, wp + 1], np.uint64(2)
+        )
+    W[2, ip, kp, p, n_w - 1] = _ZERO
+
+
+@njit
+def init_layers(
+    goal: U64Array, W: U64Array, px: int, ph: int, pw: int, chmask: U64Array, rows: I32Array
+) -> int:
+    """Set every layer of W to the goal words (nx, npsi, nw); return the rows listed.
+
+    Those rows are marked changed in every layer (chmask) and listed in `rows`.
+    """
+    m = W.shape[3]
+    nx, npsi, nw = goal.shape
+    n = 0
+    for i in range(nx):
         for k in range(npsi):
+            anyb = False
             for w in range(nw):
-                wp = pw + w
-                acc = F[0, ip, wp]
-                for c in range(core_n[k]):
-                    y0 = core_y[k, c, 0]
-                    h = core_y[k, c, 1] - y0
-                    a = wp + (y0 >> 6)
-                    s = np.uint64(y0 & 63)
-                    x = ip + core_x[k, c]
-                    acc &= _shifted(F[h, x, a], F[h, x, a + 1], s)
-                out[i, k, w] = acc
+                if goal[i, k, w] != _ZERO:
+                    anyb = True
+            for p in range(m):
+                for w in range(nw):
+                    W[0, px + i, ph + k, p, pw + w] = goal[i, k, w]
+                _erode(W, p, px + i, ph + k)
+                _copy_wraps(W, p, px + i, k, npsi, ph)
+            if anyb:
+                r = i * npsi + k
+                rows[n] = r
+                n += 1
+                for p in range(m):
+                    chmask[r, p >> 6] |= _ONE << np.uint64(p & 63)
+    return n
+
+
+@njit
+def _run(W: U64Array, x: int, kk: int, u: int, wp: int, oy0: int, oy1: int) -> np.uint64:
+    """Return the words whose cells j + oy0 .. j + oy1 all win in row (x, kk) of layer u.
+
+    Two reads of the erosions cover a run of up to 8 cells; longer runs take more.
+    """
+    n = oy1 - oy0 + 1
+    if n == 1:
+        a = wp + (oy0 >> 6)
+        return _shifted(W[0, x, kk, u, a], W[0, x, kk, u, a + 1], np.uint64(oy0 & 63))
+    e = 1 if n <= 4 else 2
+    span = 2 if e == 1 else 4
+    acc = ~_ZERO
+    oy = oy0
+    while True:
+        start = min(oy, oy1 - span + 1)
+        a = wp + (start >> 6)
+        acc &= _shifted(W[e, x, kk, u, a], W[e, x, kk, u, a + 1], np.uint64(start & 63))
+        if start + span - 1 >= oy1:
+            return acc
+        oy = start + span
+
+
+@njit
+def _check(
+    cand: np.uint64,
+    W: U64Array,
+    u: int,
+    ip: int,
+    kp: int,
+    wp: int,
+    box: I32Array,
+    h0: int,
+    h1: int,
+) -> np.uint64:
+    """Return the bits of cand whose successor box (ox0, ox1, oy0, oy1) x [h0, h1] lies in W[u]."""
+    acc = cand
+    for ox in range(box[0], box[1] + 1):
+        for ok in range(h0, h1 + 1):
+            acc &= _run(W, ip + ox, kp + ok, u, wp, box[2], box[3])
+            if acc == _ZERO:
+                return acc
+    return acc
+
+
+@njit
+def _bit(mask: U64Array, r: int, u: int) -> bool:
+    return (mask[r, u >> 6] >> np.uint64(u & 63)) & _ONE != _ZERO
 
 
 @njit
@@ -134,257 +241,409 @@ def _sweep_row(
     px: int,
     ph: int,
     pw: int,
-    E: U64Array,
-    F: U64Array,
-    VB: U64Array,
+    W: U64Array,
+    Bset: U64Array,
+    viable: U64Array,
     succ: I32Array,
     heading: I32Array,
-    tube_x0: I32Array,
-    tube_n: I32Array,
-    tube_y: I32Array,
-    new: U64Array,
+    nbr: I32Array,
+    nbr_n: I32Array,
+    umask: U64Array,
+    newA: U64Array,
+    newB: U64Array,
 ) -> None:
-    """Set new[r] (shape (nw,)) to the cells of row r = i * npsi + k that join next."""
-    i = r // npsi
+    """Compute the states of row r = i * npsi + k that join A_u and B_u next level.
+
+    For each input u marked in umask[r]: newA[r, u] and newB[r, u].
+    """
     k = r % npsi
+    i = r // npsi
     ip = px + i
     kp = ph + k
-    n_in = succ.shape[1]
-    for w in range(nw):
-        wp = pw + w
-        cand = ~E[0, ip, kp, wp] & VB[i, k, w]
-        found = _ZERO
-        if cand != _ZERO:
-            for u in range(n_in):
-                oy0 = succ[k, u, 2]
-                hy = succ[k, u, 3] - oy0
-                a = wp + (oy0 >> 6)
-                s = np.uint64(oy0 & 63)
-                acc = cand
-                for ox in range(succ[k, u, 0], succ[k, u, 1] + 1):
-                    for ok in range(heading[u, 0], heading[u, 1] + 1):
-                        acc &= _shifted(
-                            E[hy, ip + ox, kp + ok, a], E[hy, ip + ox, kp + ok, a + 1], s
-                        )
-                        if acc == _ZERO:
-                            break
-                    if acc == _ZERO:
-                        break
-                if acc == _ZERO:
-                    continue
-                x0 = ip + tube_x0[k, u]
-                for c in range(tube_n[k, u]):
-                    ty0 = tube_y[k, u, c, 0]
-                    ht = tube_y[k, u, c, 1] - ty0
-                    at = wp + (ty0 >> 6)
-                    st = np.uint64(ty0 & 63)
-                    acc &= _shifted(F[ht, x0 + c, at], F[ht, x0 + c, at + 1], st)
-                    if acc == _ZERO:
-                        break
-                if acc != _ZERO:
-                    found |= acc
-                    cand &= ~acc
-                    if cand == _ZERO:
-                        break
-        new[r, w] = found
+    for mw in range(umask.shape[1]):
+        bits = umask[r, mw]
+        while bits != _ZERO:
+            low = bits & (~bits + _ONE)
+            b = 0
+            t = low
+            while t > _ONE:
+                t >>= _ONE
+                b += 1
+            bits ^= low
+            u = 64 * mw + b
+            for w in range(nw):
+                wp = pw + w
+                cur = W[0, ip, kp, u, wp]
+                cand_a = viable[0, i, k, u, w] & ~cur
+                got_a = _ZERO
+                if cand_a != _ZERO:
+                    got_a = _check(
+                        cand_a, W, u, ip, kp, wp, succ[0, k, u], heading[0, u, 0], heading[0, u, 1]
+                    )
+                # B_u needs the larger class-1 boxes: only states that pass class 0 can,
+                # and only states some neighbouring layer still lacks matter.
+                cand_b = viable[1, i, k, u, w] & ~Bset[i, k, u, w] & (got_a | cur)
+                if cand_b != _ZERO:
+                    everywhere = ~_ZERO
+                    for n in range(nbr_n[u]):
+                        everywhere &= W[0, ip, kp, nbr[u, n], wp]
+                    cand_b &= ~everywhere
+                got_b = _ZERO
+                if cand_b != _ZERO:
+                    got_b = _check(
+                        cand_b, W, u, ip, kp, wp, succ[1, k, u], heading[1, u, 0], heading[1, u, 1]
+                    )
+                newA[r, u, w] = got_a
+                newB[r, u, w] = got_b
 
 
 @njit
-def _apply(
-    active: I32Array,
-    n_active: int,
-    npsi: int,
+def _join(
+    p: int,
+    i: int,
+    k: int,
+    w: int,
+    bits: np.uint64,
+    level: int,
     px: int,
     ph: int,
     pw: int,
+    W: U64Array,
+    planes: U64Array,
+) -> bool:
+    """Add `bits` to layer p at `level`; return True when a state joined."""
+    fresh = bits & ~W[0, px + i, ph + k, p, pw + w]
+    if fresh == _ZERO:
+        return False
+    W[0, px + i, ph + k, p, pw + w] |= fresh
+    q = 0
+    lv = level
+    while lv > 0:
+        if lv & 1:
+            planes[i, k, p, w, q] |= fresh
+        lv >>= 1
+        q += 1
+    return True
+
+
+@njit
+def _apply_row(
+    r: int,
     level: int,
-    E: U64Array,
-    new: U64Array,
-    V: NDArray[np.int32],
-    changed: BoolArray,
-) -> int:
-    """Add the new cells at value `level`, refresh their rows; return how many joined."""
-    nw = new.shape[1]
-    ny = V.shape[1]
-    count = 0
-    for a in range(n_active):
-        r = active[a]
-        i = r // npsi
-        k = r % npsi
-        any_new = False
-        for w in range(nw):
-            bits = new[r, w]
-            if bits == _ZERO:
-                continue
-            any_new = True
-            E[0, px + i, ph + k, pw + w] |= bits
-            for b in range(64):
-                if (bits >> np.uint64(b)) & _ONE:
-                    j = 64 * w + b
-                    if j < ny:
-                        V[i, j, k] = level
-                        count += 1
-        if any_new:
-            changed[r] = True
-            _erode_row(E, px + i, ph + k, pw, nw)
-            _copy_wraps(E, px + i, k, npsi, ph)
-    return count
+    npsi: int,
+    nw: int,
+    px: int,
+    ph: int,
+    pw: int,
+    W: U64Array,
+    Bset: U64Array,
+    planes: U64Array,
+    nbr: I32Array,
+    nbr_n: I32Array,
+    umask: U64Array,
+    newA: U64Array,
+    newB: U64Array,
+    chmask: U64Array,
+) -> None:
+    """Merge row r's new states into the layers; mark changed layers in chmask[r].
+
+    Clears umask[r]. Touches only row r (and its heading copies).
+    """
+    k = r % npsi
+    i = r // npsi
+    for mw in range(umask.shape[1]):
+        bits = umask[r, mw]
+        umask[r, mw] = _ZERO
+        while bits != _ZERO:
+            low = bits & (~bits + _ONE)
+            b = 0
+            t = low
+            while t > _ONE:
+                t >>= _ONE
+                b += 1
+            bits ^= low
+            u = 64 * mw + b
+            for w in range(nw):
+                got = newA[r, u, w]
+                if got != _ZERO and _join(u, i, k, w, got, level, px, ph, pw, W, planes):
+                    chmask[r, u >> 6] |= _ONE << np.uint64(u & 63)
+                got = newB[r, u, w]
+                if got != _ZERO:
+                    Bset[i, k, u, w] |= got
+                    for n in range(nbr_n[u]):
+                        p = nbr[u, n]
+                        if _join(p, i, k, w, got, level, px, ph, pw, W, planes):
+                            chmask[r, p >> 6] |= _ONE << np.uint64(p & 63)
+    for mw in range(chmask.shape[1]):
+        bits = chmask[r, mw]
+        while bits != _ZERO:
+            low = bits & (~bits + _ONE)
+            b = 0
+            t = low
+            while t > _ONE:
+                t >>= _ONE
+                b += 1
+            bits ^= low
+            p = 64 * mw + b
+            _erode(W, p, px + i, ph + k)
+            _copy_wraps(W, p, px + i, k, npsi, ph)
 
 
 @njit
 def _activate(
-    changed: BoolArray,
+    changed_rows: I32Array,
+    n_changed: int,
     nx: int,
     npsi: int,
-    px: int,
-    ph: int,
-    pw: int,
-    nw: int,
-    reach_x: I32Array,
-    h_lo: int,
-    h_hi: int,
-    E: U64Array,
-    VB: U64Array,
-    active: I32Array,
+    reach: I32Array,
+    h_reach: I32Array,
+    chmask: U64Array,
+    umask: U64Array,
+    row_flag: U8Array,
+    active_rows: I32Array,
 ) -> int:
-    """Fill `active` with rows that can gain cells after `changed`; clear `changed`.
+    """Mark the rows (i0, k0) and inputs u to sweep next; return how many rows.
 
-    Row (i, k) can gain only if a row (i + ox, k + ok) changed, ox in reach_x[k] (the
-    min and max over inputs) and ok in [h_lo, h_hi], and it has a viable cell not yet won.
+    A row is marked for u (umask) when u's successor boxes reach a row where W_u
+    changed (chmask, cleared here); the rows are listed in active_rows.
+
+    reach[k, u] = (min ox, max ox) over both classes, h_reach[u] = (min ok, max ok).
     """
-    prefix = np.zeros(nx + 1, dtype=np.int32)
     n = 0
-    for k in range(npsi):
-        for i in range(nx):
-            hit = 0
-            for ok in range(h_lo, h_hi + 1):
-                kk = k + ok  # wrap without a modulo (slow in this loop)
-                while kk < 0:
-                    kk += npsi
-                while kk >= npsi:
-                    kk -= npsi
-                if changed[i * npsi + kk]:
-                    hit = 1
-                    break
-            prefix[i + 1] = prefix[i] + hit
-        for i in range(nx):
-            lo = max(i + reach_x[k, 0], 0)
-            hi = min(i + reach_x[k, 1], nx - 1)
-            if lo > hi or prefix[hi + 1] - prefix[lo] == 0:
-                continue
-            for w in range(nw):
-                if ~E[0, px + i, ph + k, pw + w] & VB[i, k, w] != _ZERO:
-                    active[n] = i * npsi + k
-                    n += 1
-                    break
-    for r in range(changed.shape[0]):
-        changed[r] = False
+    for c in range(n_changed):
+        r = changed_rows[c]
+        k1 = r % npsi
+        i1 = r // npsi
+        for mw in range(chmask.shape[1]):
+            bits = chmask[r, mw]
+            chmask[r, mw] = _ZERO
+            while bits != _ZERO:
+                low = bits & (~bits + _ONE)
+                b = 0
+                t = low
+                while t > _ONE:
+                    t >>= _ONE
+                    b += 1
+                bits ^= low
+                u = 64 * mw + b
+                for ok in range(h_reach[u, 0], h_reach[u, 1] + 1):
+                    k0 = k1 - ok
+                    while k0 < 0:
+                        k0 += npsi
+                    while k0 >= npsi:
+                        k0 -= npsi
+                    lo = max(i1 - reach[k0, u, 1], 0)
+                    hi = min(i1 - reach[k0, u, 0], nx - 1)
+                    for i0 in range(lo, hi + 1):
+                        r0 = i0 * npsi + k0
+                        umask[r0, mw] |= low
+                        if row_flag[r0] == 0:
+                            row_flag[r0] = 1
+                            active_rows[n] = r0
+                            n += 1
+    for a in range(n):
+        row_flag[active_rows[a]] = 0
     return n
 
 
-@njit_parallel
-def fixed_point_parallel(
-    E: U64Array,
-    F: U64Array,
-    VB: U64Array,
-    V: NDArray[np.int32],
-    pads: I32Array,
-    succ: I32Array,
-    heading: I32Array,
-    tube_x0: I32Array,
-    tube_n: I32Array,
-    tube_y: I32Array,
-    reach_x: I32Array,
-    changed: BoolArray,
-    active: I32Array,
-    new: U64Array,
+@njit
+def _changed_rows(
+    active_rows: I32Array, n_active: int, chmask: U64Array, changed_rows: I32Array
 ) -> int:
-    """Run the fixed point with threads; return the number of levels.
-
-    On entry E and F come from :func:`init_bits`, VB from :func:`viable_bits` (the
-    candidates: free cells that some input may leave safely), V is 0 on the target and -1 elsewhere,
-    `changed` marks the target rows; pads = (px, ph, pw); `active` (nx * npsi,) and
-    `new` (nx * npsi, nw) are scratch. On return E[0] and V hold the winning set and values.
-    """
-    nx, _, npsi = V.shape
-    px, ph, pw = pads[0], pads[1], pads[2]
-    nw = new.shape[1]
-    h_lo = heading[:, 0].min()
-    h_hi = heading[:, 1].max()
-    n_active = _activate(changed, nx, npsi, px, ph, pw, nw, reach_x, h_lo, h_hi, E, VB, active)
-    level = 0
-    while n_active > 0:
-        for a in prange(n_active):
-            _sweep_row(
-                active[a],
-                npsi,
-                nw,
-                px,
-                ph,
-                pw,
-                E,
-                F,
-                VB,
-                succ,
-                heading,
-                tube_x0,
-                tube_n,
-                tube_y,
-                new,
-            )
-        if _apply(active, n_active, npsi, px, ph, pw, level + 1, E, new, V, changed) == 0:
-            break
-        level += 1
-        n_active = _activate(changed, nx, npsi, px, ph, pw, nw, reach_x, h_lo, h_hi, E, VB, active)
-    return level
+    n = 0
+    for a in range(n_active):
+        r = active_rows[a]
+        for mw in range(chmask.shape[1]):
+            if chmask[r, mw] != _ZERO:
+                changed_rows[n] = r
+                n += 1
+                break
+    return n
 
 
 @njit
 def fixed_point_serial(
-    E: U64Array,
-    F: U64Array,
-    VB: U64Array,
-    V: NDArray[np.int32],
+    W: U64Array,
+    Bset: U64Array,
+    viable: U64Array,
+    planes: U64Array,
     pads: I32Array,
     succ: I32Array,
     heading: I32Array,
-    tube_x0: I32Array,
-    tube_n: I32Array,
-    tube_y: I32Array,
-    reach_x: I32Array,
-    changed: BoolArray,
-    active: I32Array,
-    new: U64Array,
+    reach: I32Array,
+    h_reach: I32Array,
+    nbr: I32Array,
+    nbr_n: I32Array,
+    changed_rows: I32Array,
+    n_changed: int,
+    chmask: U64Array,
+    umask: U64Array,
+    row_flag: U8Array,
+    active_rows: I32Array,
+    newA: U64Array,
+    newB: U64Array,
 ) -> int:
-    """Run the same fixed point as :func:`fixed_point_parallel` on the calling thread."""
-    nx, _, npsi = V.shape
+    """Run the fixed point on the calling thread; return the number of levels (-1: too many).
+
+    On entry W holds the goal in every layer and chmask marks its rows
+    (:func:`init_layers`), Bset, planes and umask are zero, viable comes from
+    :func:`viable_words`. Row arrays are indexed r = i * npsi + k.
+    """
+    nx, npsi, _, nw = Bset.shape
     px, ph, pw = pads[0], pads[1], pads[2]
-    nw = new.shape[1]
-    h_lo = heading[:, 0].min()
-    h_hi = heading[:, 1].max()
-    n_active = _activate(changed, nx, npsi, px, ph, pw, nw, reach_x, h_lo, h_hi, E, VB, active)
+    max_level = (1 << planes.shape[4]) - 1
     level = 0
+    n_active = _activate(
+        changed_rows, n_changed, nx, npsi, reach, h_reach, chmask, umask, row_flag, active_rows
+    )
     while n_active > 0:
+        if level + 1 > max_level:
+            return -1
         for a in range(n_active):
             _sweep_row(
-                active[a],
+                active_rows[a],
                 npsi,
                 nw,
                 px,
                 ph,
                 pw,
-                E,
-                F,
-                VB,
+                W,
+                Bset,
+                viable,
                 succ,
                 heading,
-                tube_x0,
-                tube_n,
-                tube_y,
-                new,
+                nbr,
+                nbr_n,
+                umask,
+                newA,
+                newB,
             )
-        if _apply(active, n_active, npsi, px, ph, pw, level + 1, E, new, V, changed) == 0:
+        for a in range(n_active):
+            _apply_row(
+                active_rows[a],
+                level + 1,
+                npsi,
+                nw,
+                px,
+                ph,
+                pw,
+                W,
+                Bset,
+                planes,
+                nbr,
+                nbr_n,
+                umask,
+                newA,
+                newB,
+                chmask,
+            )
+        n_changed = _changed_rows(active_rows, n_active, chmask, changed_rows)
+        if n_changed == 0:
             break
         level += 1
-        n_active = _activate(changed, nx, npsi, px, ph, pw, nw, reach_x, h_lo, h_hi, E, VB, active)
+        n_active = _activate(
+            changed_rows,
+            n_changed,
+            nx,
+            npsi,
+            reach,
+            h_reach,
+            chmask,
+            umask,
+            row_flag,
+            active_rows,
+        )
+    return level
+
+
+@njit_parallel
+def fixed_point_parallel(
+    W: U64Array,
+    Bset: U64Array,
+    viable: U64Array,
+    planes: U64Array,
+    pads: I32Array,
+    succ: I32Array,
+    heading: I32Array,
+    reach: I32Array,
+    h_reach: I32Array,
+    nbr: I32Array,
+    nbr_n: I32Array,
+    changed_rows: I32Array,
+    n_changed: int,
+    chmask: U64Array,
+    umask: U64Array,
+    row_flag: U8Array,
+    active_rows: I32Array,
+    newA: U64Array,
+    newB: U64Array,
+) -> int:
+    """Run the fixed point of :func:`fixed_point_serial` with each level's rows threaded.
+
+    Rows are independent: a row's joins touch only that row and its heading copies.
+    """
+    nx, npsi, _, nw = Bset.shape
+    px, ph, pw = pads[0], pads[1], pads[2]
+    max_level = (1 << planes.shape[4]) - 1
+    level = 0
+    n_active = _activate(
+        changed_rows, n_changed, nx, npsi, reach, h_reach, chmask, umask, row_flag, active_rows
+    )
+    while n_active > 0:
+        if level + 1 > max_level:
+            return -1
+        for a in prange(n_active):
+            _sweep_row(
+                active_rows[a],
+                npsi,
+                nw,
+                px,
+                ph,
+                pw,
+                W,
+                Bset,
+                viable,
+                succ,
+                heading,
+                nbr,
+                nbr_n,
+                umask,
+                newA,
+                newB,
+            )
+        for a in prange(n_active):
+            _apply_row(
+                active_rows[a],
+                level + 1,
+                npsi,
+                nw,
+                px,
+                ph,
+                pw,
+                W,
+                Bset,
+                planes,
+                nbr,
+                nbr_n,
+                umask,
+                newA,
+                newB,
+                chmask,
+            )
+        n_changed = _changed_rows(active_rows, n_active, chmask, changed_rows)
+        if n_changed == 0:
+            break
+        level += 1
+        n_active = _activate(
+            changed_rows,
+            n_changed,
+            nx,
+            npsi,
+            reach,
+            h_reach,
+            chmask,
+            umask,
+            row_flag,
+            active_rows,
+        )
     return level

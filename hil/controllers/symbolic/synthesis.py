@@ -1,11 +1,8 @@
-"""Reach-avoid synthesis on the cached tables: one call per obstacle layout.
+"""Reach-avoid synthesis over (cell, current reference) on the cached tables.
 
-Fixed point (SCOTS v0.2 `ReachabilityGame`, with values): V = 0 on the target; a cell
-joins at level L + 1 if some input has an obstacle-free swept tube and all successors
-with V <= L. The kernels (see :mod:`sweep`) sweep only rows near the last frontier,
-64 cells per machine word, and release the GIL, so the runtime can re-synthesize in a
-background thread while its loop runs (on a 2-core machine, `threads=1` there leaves a
-core to the loop; numba's omp layer allows concurrent calls from several threads).
+One call per obstacle layout. The kernels (:mod:`sweep`) release the GIL, so the runtime
+can re-synthesize in a background thread while its loop runs (on a 2-core machine,
+`threads=1` leaves a core to the loop).
 """
 
 from __future__ import annotations
@@ -13,31 +10,35 @@ from __future__ import annotations
 import threading
 import time
 import tracemalloc
-from collections.abc import Sequence
 from pathlib import Path
 
 import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from hil.controllers.symbolic.abstraction import Tables, tables_for
+from hil.controllers.symbolic.abstraction import N_CLASSES, Tables
 from hil.controllers.symbolic.controller import Controller, SynthesisStats
 from hil.controllers.symbolic.errors import GridError, NoWinningSetError
-from hil.controllers.symbolic.grid import obstacle_mask, target_mask
 from hil.controllers.symbolic.kernels import pack_rows
+from hil.controllers.symbolic.lattice import InputLattice
 from hil.controllers.symbolic.problem import SymbolicProblem
 from hil.controllers.symbolic.sweep import (
+    erode_free,
     fixed_point_parallel,
     fixed_point_serial,
-    init_bits,
-    viable_bits,
+    init_layers,
+    viable_words,
 )
-from hil.core.shapes import Shape
+from hil.core.jit import njit
 
 BoolArray = NDArray[np.bool_]
 I32Array = NDArray[np.int32]
+U64Array = NDArray[np.uint64]
 
-__all__ = ["Synthesizer", "synthesize"]
+__all__ = ["N_PLANES", "Synthesizer", "synthesize"]
+
+N_PLANES = 8
+"""Bit planes of the values: at most 255 levels."""
 
 _TRACE_LOCK = threading.Lock()
 
@@ -46,46 +47,51 @@ def _max_threads() -> int:
     return int(numba.config.NUMBA_NUM_THREADS)  # type: ignore[attr-defined]
 
 
-def _tube_core(tables: Tables) -> tuple[I32Array, I32Array, I32Array]:
-    """Return the cells every input's tube covers, per heading cell: (x, count, y ranges).
+@njit
+def _all_viable(
+    free_words: U64Array,
+    order: I32Array,
+    starts: I32Array,
+    tube_x0: I32Array,
+    tube_n: I32Array,
+    tube_y: I32Array,
+    px: int,
+    pw: int,
+    Fpad: U64Array,
+    Fe: U64Array,
+    out: U64Array,
+) -> None:
+    """Fill out (3, nx, npsi, m, nw): viable words of every (class, input, heading cell).
 
-    Shapes (npsi, c), (npsi,), (npsi, c, 2). A cell whose core touches an obstacle has
-    no safe input at all, so the sweeps never need to look at it.
+    free_words (n_ranges, nx, nw) are the packed free masks; order[starts[h]:starts[h+1]]
+    lists the flat (c, k, u) whose hull range is h.
     """
-    x0 = tables.tube_x0
-    x1 = x0 + tables.tube_n - 1
-    npsi, m = x0.shape
-    entries: list[list[tuple[int, int, int]]] = []
-    for k in range(npsi):
-        row = []
-        for x in range(int(x0[k].max()), int(x1[k].min()) + 1):
-            cols = x - x0[k]
-            y0 = int(tables.tube_y[k, np.arange(m), cols, 0].max())
-            y1 = int(tables.tube_y[k, np.arange(m), cols, 1].min())
-            if y0 <= y1:
-                row.append((x, y0, y1))
-        entries.append(row)
-    width = max(1, max(len(r) for r in entries))
-    core_x = np.zeros((npsi, width), dtype=np.int32)
-    core_y = np.zeros((npsi, width, 2), dtype=np.int32)
-    core_n = np.array([len(r) for r in entries], dtype=np.int32)
-    for k, row in enumerate(entries):
-        for c, (x, y0, y1) in enumerate(row):
-            core_x[k, c] = x
-            core_y[k, c] = (y0, y1)
-    return core_x, core_n, core_y
+    n_ranges, nx, nw = free_words.shape
+    npsi = out.shape[2]
+    m = out.shape[3]
+    for h in range(n_ranges):
+        if starts[h] == starts[h + 1]:
+            continue
+        for i in range(nx):
+            for w in range(nw):
+                Fpad[px + i, pw + w] = free_words[h, i, w]
+        erode_free(Fpad, Fe)
+        for e in range(starts[h], starts[h + 1]):
+            flat = order[e]
+            u = flat % m
+            ck = flat // m
+            k = ck % npsi
+            c = ck // npsi
+            viable_words(Fe, c, k, u, tube_x0, tube_n, tube_y, px, pw, out)
 
 
 class Synthesizer:
-    """Solve the reach-avoid game for any obstacle layout on fixed tables.
+    """Solve the reach-avoid game over (cell, reference) for any obstacle layout.
 
     Args:
-        tables: The abstraction (grid, inputs, tau, margin).
+        tables: The abstraction (grid, inputs, tau, budget).
         threads: Threads for the kernel: 1 (the default) runs on the calling thread
-            only; None uses all cores. On the shared 2-core machine two threads were
-            barely faster when idle and slower under load (the fixed point has one
-            barrier per level; a descheduled thread stalls it), and one thread leaves
-            a core to the runtime's loop.
+            only; None uses all cores.
         trace_memory: Measure the peak memory of each solve with tracemalloc (slower).
     """
 
@@ -93,77 +99,83 @@ class Synthesizer:
         if threads is not None and threads < 1:
             raise GridError(f"threads must be >= 1, got {threads!r}")
         self._tables = tables
+        self._lattice = InputLattice.of(tables.inputs)
         self._threads = threads
         self._trace = trace_memory
         succ = tables.succ
-        self._reach_x = np.ascontiguousarray(
-            np.stack([succ[..., 0].min(axis=1), succ[..., 1].max(axis=1)], axis=1).astype(np.int32)
+        self._reach = np.ascontiguousarray(
+            np.stack([succ[..., 0].min(axis=0), succ[..., 1].max(axis=0)], axis=-1).astype(np.int32)
         )
-        self._e_layers = int((succ[..., 3] - succ[..., 2]).max()) + 1
-        tube_h = tables.tube_y[..., 1] - tables.tube_y[..., 0]
-        self._f_layers = int(tube_h.max()) + 1
-        # Padding (see :mod:`sweep`): rows in x, rows in heading, words in y.
+        hd = tables.heading
+        self._h_reach = np.ascontiguousarray(
+            np.stack([hd[..., 0].min(axis=0), hd[..., 1].max(axis=0)], axis=-1).astype(np.int32)
+        )
         tube_x1 = tables.tube_x0 + tables.tube_n - 1
-        reach = max(
+        reach_x = max(
             int(np.abs(succ[..., :2]).max()),
             int(np.abs(tables.tube_x0).max()),
             int(np.abs(tube_x1).max()),
         )
         max_oy = max(int(np.abs(succ[..., 2:]).max()), int(np.abs(tables.tube_y).max()))
-        heading_reach = int(np.abs(tables.heading).max())
-        self._pads = np.array([reach + 1, heading_reach, 2 + max_oy // 64], dtype=np.int32)
-        self._core = _tube_core(tables)
+        self._pads = np.array(
+            [reach_x + 1, int(np.abs(hd).max()), 2 + max_oy // 64], dtype=np.int32
+        )
+        self._f_layers = int((tables.tube_y[..., 1] - tables.tube_y[..., 0]).max()) + 1
+        ranges = tables.hull_range_index().ravel()  # flat (c, k, u) -> range
+        self._order = np.ascontiguousarray(np.argsort(ranges, kind="stable").astype(np.int32))
+        n_ranges = tables.hull_psi.shape[0] * tables.hull_psi.shape[1] * tables.hull_psi.shape[2]
+        counts = np.bincount(ranges, minlength=n_ranges)
+        self._starts = np.concatenate([[0], np.cumsum(counts)]).astype(np.int32)
+        flat = tables.hull_psi.reshape(-1, 2)
+        self._psi_lo = np.ascontiguousarray(flat[:, 0])
+        self._psi_hi = np.ascontiguousarray(flat[:, 1])
 
     @property
     def tables(self) -> Tables:
         """Return the tables this synthesizer solves on."""
         return self._tables
 
-    def solve_sets(
-        self, obstacles: Sequence[Shape], target: Shape, require_winning: bool = False
-    ) -> Controller:
-        """Solve for abstract obstacles and target given as shapes in (x, y) (see :meth:`solve`)."""
-        grid = self._tables.grid
-        obstacles_mask = obstacle_mask(grid, obstacles)
-        return self.solve(
-            obstacles_mask,
-            target_mask(grid, target, obstacles_mask),
-            require_winning=require_winning,
-        )
+    @property
+    def lattice(self) -> InputLattice:
+        """Return the input lattice (which reference may follow which)."""
+        return self._lattice
 
-    def solve(
-        self, obstacles: BoolArray, target: BoolArray, require_winning: bool = False
-    ) -> Controller:
-        """Solve for cell masks of shape (nx, ny): obstacle cells and target cells.
-
-        Args:
-            obstacles: Obstacle cells, shape (nx, ny).
-            target: Target cells, shape (nx, ny).
-            require_winning: Raise when no cell outside the target wins, instead of
-                returning a controller whose `has_winning_start` is False.
-
-        Returns:
-            The controller.
+    def solve_problem(self, problem: SymbolicProblem, require_winning: bool = False) -> Controller:
+        """Solve a problem on these tables: its obstacles, walls, hull and target.
 
         Raises:
-            GridError: Masks of the wrong shape.
-            NoWinningSetError: `require_winning` and no cell outside the target wins.
+            GridError: The problem's grid is not the tables'.
+            NoWinningSetError: `require_winning` and no state outside the target wins from rest.
         """
-        controller = self._solve_traced(obstacles, target)
+        if problem.grid != self._tables.grid:
+            raise GridError("the problem's grid is not the tables' grid")
+        start = time.perf_counter()
+        free = problem.free_masks(self._psi_lo, self._psi_hi)
+        at_rest = problem.heading_free()
+        target = problem.target_cells(at_rest)
+        obstacles = problem.inflated_obstacle_mask()
+        controller = self._solve_traced(free, target, obstacles, int(at_rest.sum()), start)
         if require_winning and not controller.has_winning_start:
             s = controller.stats
             raise NoWinningSetError(
-                f"no winning cell outside the target: {s.target_cells!r} target cells, "
-                f"{s.free_cells!r} free cells, {int(obstacles.sum())!r} obstacle cells (x, y)"
+                f"no winning cell outside the target from rest: {s.target_cells!r} target "
+                f"cells, {s.free_cells!r} free cells, {int(obstacles.sum())!r} obstacle cells"
             )
         return controller
 
-    def _solve_traced(self, obstacles: BoolArray, target: BoolArray) -> Controller:
+    def _solve_traced(
+        self,
+        free: BoolArray,
+        target: BoolArray,
+        obstacles: BoolArray,
+        free_cells: int,
+        start: float,
+    ) -> Controller:
         if self._trace:
             with _TRACE_LOCK:
                 tracemalloc.start()
                 try:
-                    controller = self._solve(obstacles, target)
+                    controller = self.solve(free, target, obstacles, free_cells, start)
                     peak = tracemalloc.get_traced_memory()[1]
                 finally:
                     tracemalloc.stop()
@@ -172,49 +184,82 @@ class Synthesizer:
                 s.levels, s.seconds, s.winning_cells, s.free_cells, s.target_cells, peak, s.threads
             )
             return controller
-        return self._solve(obstacles, target)
+        return self.solve(free, target, obstacles, free_cells, start)
 
-    def _solve(self, obstacles: BoolArray, target: BoolArray) -> Controller:
+    def solve(
+        self,
+        free: BoolArray,
+        target: BoolArray,
+        obstacles: BoolArray,
+        free_cells: int | None = None,
+        start: float | None = None,
+    ) -> Controller:
+        """Solve for masks: free cells per hull range, target cells, inflated obstacles.
+
+        Args:
+            free: Cells free for the hull over each of the tables' heading ranges, shape
+                (n_ranges, nx, ny) (``tables.hull_psi`` flattened).
+            target: Target cells, shape (nx, ny, npsi).
+            obstacles: Cells touching an inflated obstacle, shape (nx, ny) (pictures).
+            free_cells: States the hull may occupy at rest (the winning fraction's
+                denominator); cells off the inflated obstacles times npsi if None.
+            start: perf_counter() when the solve began (masks included), if earlier.
+
+        Raises:
+            GridError: Masks of the wrong shape.
+        """
         t = self._tables
         grid = t.grid
         nx, ny, npsi = grid.shape
-        if obstacles.shape != (nx, ny) or target.shape != (nx, ny):
+        m = t.n_inputs
+        n_ranges = self._psi_lo.shape[0]
+        if free.shape != (n_ranges, nx, ny) or target.shape != (nx, ny, npsi):
             raise GridError(
-                f"masks must have shape {(nx, ny)!r}, got {obstacles.shape!r} and {target.shape!r}"
+                f"masks must have shapes {(n_ranges, nx, ny)!r} and {(nx, ny, npsi)!r}, "
+                f"got {free.shape!r} and {target.shape!r}"
             )
-        start = time.perf_counter()
-        free = np.ascontiguousarray(~obstacles.astype(bool))
-        goal = np.ascontiguousarray(target.astype(bool) & free)
+        t0 = time.perf_counter() if start is None else start
         px, ph, pw = (int(p) for p in self._pads)
-        free_words = pack_rows(free)  # (nx, nw)
-        nw = free_words.shape[1]
-        bits = np.zeros((self._e_layers, nx + 2 * px, npsi + 2 * ph, nw + 2 * pw), dtype=np.uint64)
-        free_bits = np.zeros((self._f_layers, nx + 2 * px, nw + 2 * pw), dtype=np.uint64)
-        init_bits(pack_rows(goal), free_words, bits, free_bits, px, pw)
-        viable = np.empty((nx, npsi, nw), dtype=np.uint64)
-        viable_bits(free_bits, *self._core, px, pw, viable)
-        values = np.full((nx, ny, npsi), -1, dtype=np.int32)
-        values[goal] = 0
-        changed = np.repeat(goal.any(axis=1), npsi)
-        active = np.empty(nx * npsi, dtype=np.int32)
-        new = np.zeros((nx * npsi, nw), dtype=np.uint64)
-        threads = 1 if self._threads == 1 else (self._threads or _max_threads())
-        args = (
-            bits,
-            free_bits,
-            viable,
-            values,
-            self._pads,
-            t.succ,
-            t.heading,
+        nw = (ny + 63) // 64
+        free_words = pack_rows(np.ascontiguousarray(free.reshape(-1, ny))).reshape(n_ranges, nx, nw)
+        viable = np.zeros((N_CLASSES, nx, npsi, m, nw), dtype=np.uint64)
+        f_pad = np.zeros((nx + 2 * px, nw + 2 * pw), dtype=np.uint64)
+        f_eroded = np.zeros((self._f_layers, nx + 2 * px, nw + 2 * pw), dtype=np.uint64)
+        _all_viable(
+            free_words,
+            self._order,
+            self._starts,
             t.tube_x0,
             t.tube_n,
             t.tube_y,
-            self._reach_x,
-            changed,
-            active,
-            new,
+            px,
+            pw,
+            f_pad,
+            f_eroded,
+            viable,
         )
+        goal_cells = np.ascontiguousarray(np.transpose(target, (0, 2, 1)).reshape(-1, ny))
+        goal = pack_rows(goal_cells).reshape(nx, npsi, nw)
+        W = np.zeros((3, nx + 2 * px, npsi + 2 * ph, m, nw + 2 * pw), dtype=np.uint64)
+        n_rows = nx * npsi
+        mw = (m + 63) // 64
+        chmask = np.zeros((n_rows, mw), dtype=np.uint64)
+        changed_rows = np.empty(n_rows, dtype=np.int32)
+        n_changed = init_layers(goal, W, px, ph, pw, chmask, changed_rows)
+        b_set = np.zeros((nx, npsi, m, nw), dtype=np.uint64)
+        planes = np.zeros((nx, npsi, m, nw, N_PLANES), dtype=np.uint64)
+        umask = np.zeros((n_rows, mw), dtype=np.uint64)
+        row_flag = np.zeros(n_rows, dtype=np.uint8)
+        active_rows = np.empty(n_rows, dtype=np.int32)
+        new_a = np.empty((n_rows, m, nw), dtype=np.uint64)
+        new_b = np.empty((n_rows, m, nw), dtype=np.uint64)
+        lat = self._lattice
+        args = (
+            W, b_set, viable, planes, self._pads, t.succ, t.heading, self._reach,
+            self._h_reach, lat.neighbours, lat.n_neighbours, changed_rows, n_changed, chmask,
+            umask, row_flag, active_rows, new_a, new_b,
+        )  # fmt: skip
+        threads = 1 if self._threads == 1 else (self._threads or _max_threads())
         if threads == 1:
             levels = fixed_point_serial(*args)
         else:
@@ -224,17 +269,17 @@ class Synthesizer:
                 levels = fixed_point_parallel(*args)
             finally:
                 numba.set_num_threads(previous)
-        seconds = time.perf_counter() - start
-        n_target = int(goal.sum()) * npsi
-        stats = SynthesisStats(
-            levels=int(levels),
-            seconds=seconds,
-            winning_cells=int(np.count_nonzero(values >= 0)),
-            free_cells=int(free.sum()) * npsi,
-            target_cells=n_target,
-            threads=threads,
-        )
-        return Controller(t, values, obstacles.astype(bool), stats)
+        if levels < 0:
+            raise GridError(f"the fixed point needs more than {2**N_PLANES - 1} levels")
+        seconds = time.perf_counter() - t0
+        return Controller(
+            t, lat, np.ascontiguousarray(W[0]), planes, viable, self._pads, obstacles.astype(bool), SynthesisStats(
+                levels=int(levels), seconds=seconds, winning_cells=0,
+                free_cells=int((~obstacles).sum()) * npsi if free_cells is None else free_cells,
+                target_cells=int(target.sum()),
+                threads=threads,
+            ),
+        )  # fmt: skip
 
 
 def synthesize(
@@ -255,31 +300,25 @@ def synthesize(
         use_cache: False neither reads nor writes the table cache.
         threads: Kernel threads (see :class:`Synthesizer`).
         require_winning: Raise :class:`NoWinningSetError` when no start outside the
-            target wins (otherwise check `Controller.has_winning_start`).
+            target wins from rest.
 
     Raises:
-        GridError: Tables built for another grid, inputs, tau or margin.
+        GridError: Tables built for another grid, inputs, tau or budget.
         NoWinningSetError: `require_winning` and nothing outside the target wins.
     """
     if tables is None:
-        tables, _ = tables_for(
-            problem.grid,
-            problem.inputs,
-            problem.tau_s,
-            problem.margin,
-            cache_dir=cache_dir,
-            use_cache=use_cache,
-        )
+        tables, _ = problem.tables(cache_dir=cache_dir, use_cache=use_cache)
     elif (
         tables.grid != problem.grid
         or tables.inputs.shape != problem.inputs.shape
         or not (
             np.array_equal(tables.inputs, problem.inputs)
             and tables.tau_s == problem.tau_s
-            and np.array_equal(tables.margin, problem.margin)
+            and tables.late_s == problem.late_s
+            and tables.budget_key == problem.budget.digest()
         )
     ):
-        raise GridError(f"tables {tables.key!r} were built for another grid, inputs, tau or margin")
-    return Synthesizer(tables, threads=threads).solve_sets(
-        problem.obstacles, problem.target, require_winning=require_winning
+        raise GridError(f"tables {tables.key!r} were built for another grid, inputs, tau or budget")
+    return Synthesizer(tables, threads=threads).solve_problem(
+        problem, require_winning=require_winning
     )
