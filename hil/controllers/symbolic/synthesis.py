@@ -7,9 +7,11 @@ can re-synthesize in a background thread while its loop runs (on a 2-core machin
 
 from __future__ import annotations
 
+import hashlib
 import threading
 import time
 import tracemalloc
+from collections import OrderedDict
 from pathlib import Path
 
 import numba
@@ -41,6 +43,12 @@ N_PLANES = 8
 """Bit planes of the values: at most 255 levels."""
 
 _TRACE_LOCK = threading.Lock()
+
+MEMO_SIZE = 2
+"""Solved controllers a process keeps, keyed by tables and masks (:meth:`solve_problem`)."""
+
+_MEMO: OrderedDict[str, Controller] = OrderedDict()
+_MEMO_LOCK = threading.Lock()
 
 
 def _max_threads() -> int:
@@ -93,15 +101,25 @@ class Synthesizer:
         threads: Threads for the kernel: 1 (the default) runs on the calling thread
             only; None uses all cores.
         trace_memory: Measure the peak memory of each solve with tracemalloc (slower).
+        memo: Reuse a controller this process already solved for the same tables and
+            masks (the last :data:`MEMO_SIZE`): simulated runs and campaigns solve the
+            same layout over and over. Benchmarks turn it off.
     """
 
-    def __init__(self, tables: Tables, threads: int | None = 1, trace_memory: bool = False) -> None:
+    def __init__(
+        self,
+        tables: Tables,
+        threads: int | None = 1,
+        trace_memory: bool = False,
+        memo: bool = True,
+    ) -> None:
         if threads is not None and threads < 1:
             raise GridError(f"threads must be >= 1, got {threads!r}")
         self._tables = tables
         self._lattice = InputLattice.of(tables.inputs)
         self._threads = threads
         self._trace = trace_memory
+        self._memo = memo and not trace_memory
         succ = tables.succ
         self._reach = np.ascontiguousarray(
             np.stack([succ[..., 0].min(axis=0), succ[..., 1].max(axis=0)], axis=-1).astype(np.int32)
@@ -154,7 +172,26 @@ class Synthesizer:
         at_rest = problem.heading_free()
         target = problem.target_cells(at_rest)
         obstacles = problem.inflated_obstacle_mask()
-        controller = self._solve_traced(free, target, obstacles, int(at_rest.sum()), start)
+        key = ""
+        cached = None
+        if self._memo:
+            digest = hashlib.sha256(self._tables.key.encode())
+            for mask in (free, target, obstacles):
+                digest.update(np.packbits(mask, axis=None).tobytes())
+            key = digest.hexdigest()
+            with _MEMO_LOCK:
+                cached = _MEMO.get(key)
+                if cached is not None:
+                    _MEMO.move_to_end(key)
+        if cached is not None:
+            controller = cached
+        else:
+            controller = self._solve_traced(free, target, obstacles, int(at_rest.sum()), start)
+            if self._memo:
+                with _MEMO_LOCK:
+                    _MEMO[key] = controller
+                    while len(_MEMO) > MEMO_SIZE:
+                        _MEMO.popitem(last=False)
         if require_winning and not controller.has_winning_start:
             s = controller.stats
             raise NoWinningSetError(
