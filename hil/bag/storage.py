@@ -307,7 +307,14 @@ class McapFile:
             (data_len,) = struct.unpack_from("<Q", record, 32 + name_len)
             start = 40 + name_len
             data = _decompress(compression, record[start : start + data_len], size)
-        except (OSError, struct.error, UnicodeDecodeError, ValueError, zstandard.ZstdError) as err:
+        except (
+            OSError,
+            OverflowError,  # a damaged uncompressed-size field beyond what memory allows
+            struct.error,
+            UnicodeDecodeError,
+            ValueError,
+            zstandard.ZstdError,
+        ) as err:
             raise BagFormatError(
                 f"{str(self.path)!r}: chunk at offset {index.chunk_start_offset} cannot be read: "
                 f"{_describe(err)}"
