@@ -114,8 +114,8 @@ def run(args: argparse.Namespace) -> int:
         scenario = load_scenario(args.scenario)
         solver = LayoutSolver(scenario, synthesizer_for(scenario))
         controller = solver(layout_from_scenario(scenario)).controller
-        starts, discarded = draw_starts(controller, args.n, args.seed)
         velocities = draw_velocities(scenario, args.n, args.moving, args.seed)
+        starts, discarded = draw_starts(controller, args.n, args.seed, velocities=velocities)
     except (ScenarioError, SymbolicError, ValueError) as err:
         print(f"hil campaign: {err}", file=sys.stderr)
         return 2

@@ -13,7 +13,7 @@ import contextlib
 import math
 import multiprocessing
 import signal
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, replace
 
@@ -32,6 +32,9 @@ PAPER_TANK_MINUTES = (2.67, 1.71, 3.66)
 """Docking time in the towing tank (paper): mean, min, max (min)."""
 
 
+Velocity = tuple[float, float, float]
+
+
 @dataclass(frozen=True, slots=True)
 class StartRegion:
     """Where random starts are drawn: a box in (x, y) and any heading.
@@ -44,8 +47,15 @@ class StartRegion:
 
 
 def draw_starts(controller: Controller, n: int, seed: int,
-                region: StartRegion | None = None) -> tuple[list[tuple[float, float, float]], int]:
-    """Draw `n` start poses in the region that lie in the winning set.
+                region: StartRegion | None = None,
+                velocities: Sequence[Velocity | None] | None = None,
+                ) -> tuple[list[tuple[float, float, float]], int]:
+    """Draw `n` start poses in the region that the controller calls winning.
+
+    Winning as the runtime's first decision sees it: some input is safe with the input
+    nearest the start velocity in force, every candidate budgeted as a first command
+    (:meth:`Controller.decision_value`); `velocities[i]` (m/s, m/s, rad/s; None: at
+    rest) is run i's start velocity.
 
     Returns:
         The starts and how many draws were discarded as not winning.
@@ -57,8 +67,9 @@ def draw_starts(controller: Controller, n: int, seed: int,
     while len(starts) < n:
         pose = (float(rng.uniform(*region.x_m)), float(rng.uniform(*region.y_m)),
                 float(rng.uniform(-math.pi, math.pi)))
-        # The runtime's first decision budgets every input as a first command.
-        if math.isfinite(controller.decision_value(pose, None, first=True)):
+        velocity = None if velocities is None else velocities[len(starts)]
+        reference = None if velocity is None else controller.lattice.nearest(np.array(velocity))
+        if math.isfinite(controller.decision_value(pose, reference, first=True)):
             starts.append(pose)
         else:
             discarded += 1
@@ -67,7 +78,6 @@ def draw_starts(controller: Controller, n: int, seed: int,
     return starts, discarded
 
 
-Velocity = tuple[float, float, float]
 
 
 def draw_velocities(scenario: Scenario, n: int, moving: float, seed: int) -> list[Velocity | None]:

@@ -98,12 +98,13 @@ def dense_fixed_point(tables: Tables, free: BoolArray, target: BoolArray) -> tup
     """
     lattice = InputLattice.of(tables.inputs)
     m = tables.n_inputs
-    tube = dense_tube_free(tables, free)
+    if tube is None:
+        tube = dense_tube_free(tables, free)
     pad = int(np.abs(tables.succ).max()) + 1
     values = np.full((m, *target.shape), -1, dtype=np.int32)
     values[:, target] = 0
     level = 0
-    while True:
+    while max_levels is None or level < max_levels:
         win = values >= 0
         hold = np.zeros_like(win)
         change = np.zeros_like(win)
