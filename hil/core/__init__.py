@@ -5,8 +5,8 @@
 - :mod:`hil.core.samples`: sensor and actuator samples (pose, IMU, thrusters, layouts);
 - :mod:`hil.core.records`: what the stack records besides samples (decisions, events);
 - :mod:`hil.core.tracking`: the velocity-tracking error (join, units, sign);
-- :mod:`hil.core.transient`: the transient budget (velocity-error envelopes per period
-  class, EKF error) and the arc-deviation bounds it implies;
+- :mod:`hil.core.transient`: the transient budget (bounds on the deviation from the
+  exact arc per period class and time bin, velocity-error envelopes, EKF error);
 - :mod:`hil.core.clock`: simulated and wall clocks;
 - :mod:`hil.core.config`: TOML tables into frozen dataclasses, errors naming the key.
 

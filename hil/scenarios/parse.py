@@ -4,8 +4,8 @@ Keys and types are checked by :mod:`hil.core.config` (the tables that are one
 dataclass, ``margin`` and ``hull``, by :func:`~hil.core.config.from_table`); this
 module adds what only a scenario knows: cells dividing the arena, input grids,
 heading cells dividing the circle, plausible units, shapes told apart by their
-keys, a ``[transient]`` budget whose bins cover one period (missing: the paper's zero
-budget), and sets that fit together (:func:`~hil.scenarios.scenario.check_sets`).
+keys, a ``[transient]`` budget whose bins cover a period held late (missing: the paper's
+zero budget), and sets that fit together (:func:`~hil.scenarios.scenario.check_sets`).
 """
 
 from __future__ import annotations
@@ -17,7 +17,13 @@ import numpy as np
 
 from hil.core.config import ConfigError, check_keys, from_table, number, numbers, table
 from hil.core.shapes import Polygon, Rect, Shape
-from hil.core.transient import BudgetClass, TransientBudget, TransientBudgetError
+from hil.core.transient import (
+    LATE_S,
+    BudgetClass,
+    TransientBudget,
+    TransientBudgetError,
+    horizon_bins,
+)
 from hil.scenarios.errors import ScenarioError
 from hil.scenarios.scenario import (
     Hull,
@@ -173,21 +179,24 @@ def _margin(data: dict[str, Any]) -> TrackingMargin:
 
 
 _ENVELOPE_AXES = ("surge_mps", "sway_mps", "yaw_rate_radps")
-_ENVELOPE_CLASSES = {BudgetClass.HOLD: "hold", BudgetClass.CHANGE: "change"}
+_CLASSES = {BudgetClass.HOLD: "hold", BudgetClass.CHANGE: "change", BudgetClass.START: "start"}
+_DEVIATIONS = ("position_m", "heading_rad")
 _TRANSIENT_KEYS = {
     "bin_s",
     "estimation_position_m",
     "estimation_heading_rad",
     "source",
-    *(f"{c}_{a}" for c in _ENVELOPE_CLASSES.values() for a in _ENVELOPE_AXES),
+    *(f"{c}_{a}" for c in _CLASSES.values() for a in (*_DEVIATIONS, *_ENVELOPE_AXES)),
 }
 
 
 def _transient(data: dict[str, Any], tau_s: float) -> TransientBudget:
     """Read `[transient]`; a missing table is the paper's zero budget.
 
-    The bins must cover one period: ``bin_s`` divides ``tau_s`` and every envelope key
-    lists ``tau_s / bin_s`` numbers >= 0 (bin j covers [j bin_s, (j + 1) bin_s]).
+    ``bin_s`` divides ``tau_s``, and the bins cover a period held late, ``tau_s +
+    LATE_S``: every per-bin key lists ``ceil((tau_s + LATE_S) / bin_s)`` numbers >= 0
+    (9 for 0.25-s bins and tau = 2 s). The deviation bounds ``{class}_position_m`` and
+    ``{class}_heading_rad`` hold up to each bin's end, so they never decrease.
     """
     if "transient" not in data:
         return TransientBudget.zero(tau_s)
@@ -199,16 +208,24 @@ def _transient(data: dict[str, Any], tau_s: float) -> TransientBudget:
         raise ScenarioError(
             f"key {where}'bin_s' = {bin_s!r} must be > 0 and divide timing.'tau_s' = {tau_s!r}"
         )
-    n_bins = round(tau_s / bin_s)
-    env = np.empty((len(_ENVELOPE_CLASSES), n_bins, len(_ENVELOPE_AXES)))
-    for cls, prefix in _ENVELOPE_CLASSES.items():
+    bin_s = tau_s / round(tau_s / bin_s)
+    n_bins = horizon_bins(tau_s, bin_s)
+    n_classes = len(_CLASSES)
+    env = np.empty((n_classes, n_bins, len(_ENVELOPE_AXES)))
+    deviation = {name: np.empty((n_classes, n_bins)) for name in _DEVIATIONS}
+    for cls, prefix in _CLASSES.items():
+        for name in _DEVIATIONS:
+            key = f"{prefix}_{name}"
+            values = _per_bin(raw, key, where, n_bins)
+            drop = next((j for j in range(n_bins - 1) if values[j + 1] < values[j]), None)
+            if drop is not None:
+                raise ScenarioError(
+                    f"key {where}{key!r} must not decrease (a bound up to each bin's end), "
+                    f"got {values[drop]!r} then {values[drop + 1]!r} at bins {drop}-{drop + 1}"
+                )
+            deviation[name][cls] = values
         for axis, suffix in enumerate(_ENVELOPE_AXES):
-            key = f"{prefix}_{suffix}"
-            values = numbers(raw, key, where, n_bins)
-            bad = [v for v in values if v < 0.0]
-            if bad:
-                raise ScenarioError(f"key {where}{key!r} must be >= 0, got {bad[0]!r}")
-            env[cls, :, axis] = values
+            env[cls, :, axis] = _per_bin(raw, f"{prefix}_{suffix}", where, n_bins)
     estimation = {}
     for key in ("estimation_position_m", "estimation_heading_rad"):
         estimation[key] = number(raw, key, where)
@@ -218,11 +235,34 @@ def _transient(data: dict[str, Any], tau_s: float) -> TransientBudget:
     if not isinstance(source, str):
         raise ScenarioError(f"key {where}'source' must be a string, got {source!r}")
     try:
-        budget = TransientBudget(bin_s=tau_s / n_bins, envelopes=env, source=source, **estimation)
+        budget = TransientBudget(
+            bin_s=bin_s,
+            envelopes=env,
+            position_m=deviation["position_m"],
+            heading_rad=deviation["heading_rad"],
+            source=source,
+            **estimation,
+        )
     except TransientBudgetError as err:
         raise ScenarioError(f"table 'transient': {err}") from err
     check_transient(budget, tau_s)
     return budget
+
+
+def _per_bin(raw: dict[str, Any], key: str, where: str, n_bins: int) -> tuple[float, ...]:
+    """Return `raw[key]`: one number >= 0 per bin (the message says how many bins and why)."""
+    try:
+        values = numbers(raw, key, where, n_bins)
+    except ConfigError as err:
+        if key not in raw:
+            raise
+        raise ScenarioError(
+            f"{err} (one per {raw.get('bin_s')!r}-s bin up to timing.'tau_s' + {LATE_S!r} s)"
+        ) from err
+    bad = [v for v in values if v < 0.0]
+    if bad:
+        raise ScenarioError(f"key {where}{key!r} must be >= 0, got {bad[0]!r}")
+    return values
 
 
 def _parse(data: dict[str, Any], default_name: str) -> Scenario:

@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hil.core.shapes import Polygon, Rect, Shape, convex_distance_m, shapes_overlap
-from hil.core.transient import TransientBudget
+from hil.core.transient import LATE_S, TransientBudget, horizon_bins
 from hil.scenarios.errors import ScenarioError
 
 FloatArray = NDArray[np.float64]
@@ -134,9 +134,10 @@ class Scenario:
         tau_s: Sampling time of the abstraction (s).
         margin: Tracking-error margin per axis (the constant margin after settling; being
             replaced by `transient`).
-        transient: Time-resolved budget of the velocity error per period class and of
-            the EKF's pose error (:class:`~hil.core.transient.TransientBudget`); its bins
-            cover `tau_s`.
+        transient: Time-resolved bounds on the deviation from the exact arc (and the
+            velocity error) per period class, and the EKF's pose error
+            (:class:`~hil.core.transient.TransientBudget`); its bins cover `tau_s` +
+            :data:`~hil.core.transient.LATE_S`.
         hull: Hull footprint.
         obstacles: Real obstacles with their inflation.
         target: Real target with its deflation.
@@ -209,7 +210,8 @@ class Scenario:
         """Return the same scenario with another transient budget.
 
         Raises:
-            ScenarioError: The budget's bins do not cover exactly one period `tau_s`.
+            ScenarioError: The budget's bins do not cover a period held late (`tau_s` +
+                :data:`~hil.core.transient.LATE_S`).
         """
         check_transient(budget, self.tau_s)
         return replace(self, transient=budget)
@@ -236,15 +238,20 @@ class Scenario:
 
 
 def check_transient(budget: TransientBudget, tau_s: float) -> None:
-    """Check that a transient budget's bins cover exactly one command period.
+    """Check that a transient budget's bins cover a command period held late, and no more.
+
+    A period lasts ``tau_s`` to ``tau_s + LATE_S`` (a command held up to two 20-Hz ticks
+    late): the budget must have the fewest bins of its ``bin_s`` that cover that.
 
     Raises:
-        ScenarioError: ``n_bins * bin_s`` differs from `tau_s`.
+        ScenarioError: The budget has another number of bins.
     """
-    if abs(budget.horizon_s() - tau_s) > 1e-9 * max(1.0, tau_s):
+    need = horizon_bins(tau_s, budget.bin_s)
+    if budget.n_bins != need:
         raise ScenarioError(
             f"key transient.'bin_s' = {budget.bin_s!r} with {budget.n_bins} bins covers "
-            f"{budget.horizon_s()!r} s, not one period timing.'tau_s' = {tau_s!r} s"
+            f"{budget.horizon_s()!r} s, not a period held late, timing.'tau_s' + {LATE_S!r} = "
+            f"{tau_s + LATE_S!r} s (need {need} bins)"
         )
 
 

@@ -1,13 +1,21 @@
 """The transient budget the shipped low level achieves, derived from the code it runs.
 
-A scenario's ``[transient]`` (:class:`~hil.core.transient.TransientBudget`) bounds the
-true velocity error ``|nu - nu_ref|`` per axis over each command period, in time bins,
-for two classes of period: *hold* (the reference equals the previous one) and *change*
-(it moved by at most one input-grid step per axis, or the period is the first of a run
-that started moving). It is measured here on the compiled closed loop of
-:mod:`hil.sim.closed_loop` (the runtime's low-level tick on the simulated plant, sensors
-and EKF in the loop), on references that obey the game's rule: each period the
-reference stays or moves to a neighbour on the scenario's input grid.
+A scenario's ``[transient]`` (:class:`~hil.core.transient.TransientBudget`) bounds, per
+class of command period and time bin, how far the true pose strays from the exact arc
+of the commanded input u started at the true pose at the period's start: the position
+``|p(t) - pbar(t)|`` and heading ``|psi(t) - psibar(t)|`` for every t up to the bin's
+end. The classes (:class:`~hil.core.transient.BudgetClass`): *hold* (the reference
+equals the previous period's), *change* (it moved by at most one input-grid step per
+axis) and *start* (the first period of a run). It is measured here on the compiled
+closed loop of :mod:`hil.sim.closed_loop` (the runtime's low-level tick at 20 Hz on the
+simulated plant, sensors and EKF in the loop), on references that obey the game's rule:
+each period the reference stays or moves to a neighbour on the scenario's input grid.
+
+Each period lasts a random whole number of physics steps in [tau, tau + LATE_S]
+(uniform): a command may be held up to two 20-Hz ticks late. The references are fed to
+the closed loop per physics step, so a period may begin between two low-level ticks;
+the low level picks the new reference up at its next tick, as on the vessel. The bins
+cover tau + LATE_S (9 of 0.25 s for tau = 2 s), and every period is measured to its end.
 
 The references (:class:`TransientRecipe`):
 
@@ -21,24 +29,24 @@ The references (:class:`TransientRecipe`):
   a uniformly chosen other neighbour;
 - *sweeps*, from rest: for each of the 26 directions a ramp of changes along it from
   one side of the grid to the other, then holds (the low level lags a ramp most);
-- *moving starts*, for every pair (p*, u in N(p*)): the true velocity drawn uniformly
-  within half a grid step of p* (clipped to the input box), thrusters idle, a random
-  heading, the EKF from the true state as configured, the first reference u (class
-  change), then a walk; and once more from the corner of that half-step box farthest
-  from u (the largest first step the rule allows), u then held (the tail of that step
-  is the largest a hold sees: the thrusters start idle).
+- *starts* (class start), for every pair (p*, u in N(p*)): the true velocity drawn
+  uniformly within half a grid step of p* per axis (clipped to the input box),
+  thrusters idle, a random heading, the EKF from the true state as configured, the
+  first reference u, then a walk; once more from the corner of that half-step box
+  farthest from u (the largest first step the rule allows), u then held; and from rest
+  exactly (p* the input nearest zero) to every u in N(p*).
 
-Every period is classified, and per class, bin and axis the largest ``|nu - nu_ref|``
-over all physics samples in the bin (both edges: the sample at t = tau closes a period)
-is multiplied by ``safety_factor`` and rounded up to ``DIGITS`` decimals. The
-estimation bounds are the largest EKF position and heading errors of every run after
-its first ``estimation_after_s``, scaled and rounded alike. The same runs check the
-bound: each period's true deviation from the exact arc of its
-reference started at the true pose against ``position_bound_m`` / ``heading_bound_rad``
-(:func:`check_bound` on fresh seeds).
+Every period is classified (:func:`classify`), and per class and bin the largest
+deviation over all periods (a running max over the bins) is multiplied by
+``safety_factor``, increased by ``position_margin_m`` / ``heading_margin_rad`` and
+rounded up to ``DIGITS`` decimals. The velocity envelopes (max ``|nu - nu_ref|`` per
+class, bin and axis, both bin edges) and the estimation bounds (the largest EKF
+position and heading errors of every run after its first ``estimation_after_s``) are
+scaled by ``safety_factor`` and rounded alike. :func:`check_bound` flies a recipe on
+other seeds and compares what it measures with a budget.
 
 ``python -m bench lowlevel`` prints the table; tests/sim/test_transient_derivation.py checks that
-the packaged scenarios ship it and that fresh runs stay inside the bound.
+the packaged scenarios ship it and that fresh runs stay inside it.
 """
 
 from __future__ import annotations
@@ -46,14 +54,14 @@ from __future__ import annotations
 import itertools
 import math
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
 from hil.controllers.symbolic.abstraction import displacement
 from hil.core.geometry import wrap_angles
-from hil.core.transient import N_CLASSES, BudgetClass, TransientBudget
+from hil.core.transient import LATE_S, N_CLASSES, BudgetClass, TransientBudget, horizon_bins
 from hil.scenarios import Scenario
 from hil.sim.closed_loop import ClosedLoopResult, LowLevelConfig, simulate_closed_loop
 from hil.sim.errors import ClosedLoopConfigError
@@ -62,8 +70,10 @@ FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
 __all__ = [
+    "CLASS_NAMES",
     "DIGITS",
     "BoundRatios",
+    "Measured",
     "Run",
     "TransientDerivation",
     "TransientRecipe",
@@ -71,7 +81,10 @@ __all__ = [
     "classify",
     "derive_transient",
     "euler_tour",
+    "fly",
     "input_grid",
+    "measure",
+    "period_steps",
     "recipe_runs",
     "round_up",
     "toml_table",
@@ -79,6 +92,11 @@ __all__ = [
 
 DIGITS = 4
 """Decimals of the ``[transient]`` entries (m/s, m/s, rad/s, m, rad)."""
+
+CLASS_NAMES = ("hold", "change", "start")
+"""The classes' names, by :class:`~hil.core.transient.BudgetClass` (the TOML key prefixes)."""
+
+_AXES = ("surge_mps", "sway_mps", "yaw_rate_radps")
 
 _DIRECTIONS = np.array(
     [d for d in itertools.product((-1, 0, 1), repeat=3) if any(d)], dtype=np.int64
@@ -88,87 +106,130 @@ _MOVES = np.array(list(itertools.product((-1, 0, 1), repeat=3)), dtype=np.int64)
 
 @dataclass(frozen=True, slots=True)
 class TransientRecipe:
-    """How the transient budget is measured (the default: ~20 s on one core, 44,000 s flown).
+    """How the transient budget is measured (the default: ~25 s on one core, 45,000 s flown).
 
     Attributes:
         tours: Randomized Euler tours over every (p, u in N(p)) pair, one run each.
         walks: Long random walks from rest, one run each.
         walk_s: Length of each walk (s).
         sweeps: Whether to fly the 26 ramps (one run).
-        moving: Passes over every (p*, u in N(p*)) pair starting moving, one run each.
-        moving_corners: Whether to add, for every pair, a start at the corner of the
+        starts: Passes over every (p*, u in N(p*)) pair starting moving, one run each;
+            each pass also starts once from rest to every u in N(p*), p* the input
+            nearest zero.
+        start_corners: Whether to add, for every pair, a start at the corner of the
             half-step box around p* farthest from u, then u held.
-        moving_share: Share of the pairs each moving pass starts from (drawn at random;
-            1: every pair), for quick checks.
-        moving_periods: Periods of each moving run (the first is a change).
-        n_bins: Time bins per command period.
+        start_share: Share of the pairs each start pass flies (drawn at random; 1: every
+            pair), for quick checks.
+        start_periods: Periods of each start run (the first is of class start).
+        bin_s: Width of the time bins (s); as many bins as cover tau + LATE_S.
         safety_factor: Factor on every measured maximum.
+        position_margin_m: Added to each scaled position deviation (m).
+        heading_margin_rad: Added to each scaled heading deviation (rad).
         estimation_after_s: The EKF's errors count from this far into each run (s).
-        seed: Seed of the references, starts and sensor noise (a derivation is a
-            deterministic function of the recipe).
+        seed: Seed of the references, period lengths, starts and sensor noise (a
+            derivation is a deterministic function of the recipe).
     """
 
     tours: int = 2
     walks: int = 4
     walk_s: float = 180.0
     sweeps: bool = True
-    moving: int = 1
-    moving_corners: bool = True
-    moving_share: float = 1.0
-    moving_periods: int = 2
-    n_bins: int = 8
-    safety_factor: float = 1.2
+    starts: int = 1
+    start_corners: bool = True
+    start_share: float = 1.0
+    start_periods: int = 2
+    bin_s: float = 0.25
+    safety_factor: float = 1.25
+    position_margin_m: float = 0.002
+    heading_margin_rad: float = 0.002
     estimation_after_s: float = 2.0
     seed: int = 2000
 
     def describe(self) -> str:
         """Return the one-line source text a scenario stores with its budget."""
+        share = "all" if self.start_share >= 1.0 else f"{self.start_share:g} of the"
         return (
-            f"hil.sim.transient (python -m bench lowlevel): max |nu - nu_ref| per class, "
-            f"{self.n_bins} bins x axis, x{self.safety_factor:g}, rounded up; {self.tours} "
-            f"Euler tours of all (p, u in N(p)) pairs, {self.walks} walks x {self.walk_s:g} s, "
-            f"{'26 ramps, ' if self.sweeps else ''}moving starts from {self.moving}"
-            f"{' + 1 (farthest corner)' if self.moving_corners else ''} x "
-            f"{'all' if self.moving_share >= 1.0 else f'{self.moving_share:g} of the'} pairs, "
-            f"{self.moving_periods} periods each; seed {self.seed}; the runtime's low level on the "
-            "simulated plant, sensors and EKF"
+            "hil.sim.transient (python -m bench lowlevel): max deviation from the exact arc "
+            f"(|p - pbar|, |psi - psibar|) per class and {self.bin_s:g}-s bin, running max, "
+            f"x{self.safety_factor:g} + {self.position_margin_m:g} m / "
+            f"{self.heading_margin_rad:g} rad; max |nu - nu_ref| x{self.safety_factor:g}; "
+            f"rounded up to 1e-{DIGITS}; periods of tau to tau + {LATE_S:g} s (uniform, "
+            f"whole physics steps); {self.tours} Euler tours of all (p, u in N(p)) pairs, "
+            f"{self.walks} walks x {self.walk_s:g} s, {'26 ramps, ' if self.sweeps else ''}"
+            f"starts from {self.starts}"
+            f"{' + 1 (farthest corner)' if self.start_corners else ''} x {share} pairs "
+            f"and from rest, {self.start_periods} periods each; seed {self.seed}; the "
+            "runtime's low level on the simulated plant, sensors and EKF"
         )
 
 
 @dataclass(frozen=True, slots=True, eq=False)
 class Run:
-    """One closed-loop run of the recipe: its references and where it starts.
+    """One closed-loop run of the recipe: its references, period lengths and start.
 
     Attributes:
-        kind: ``tour``, ``walk``, ``sweeps``, ``moving`` or ``corner``.
+        kind: ``tour``, ``walk``, ``sweeps``, ``start`` (moving), ``corner`` or ``rest``.
         refs: References, shape (N, 3) (m/s, m/s, rad/s), one per period.
-        previous: The reference before the first period, shape (3,): the input nearest
-            zero from rest, p* for a moving start.
+        steps: Length of each period in physics steps, shape (N,).
+        previous: p*, the input the run starts near, shape (3,): the input nearest zero
+            from rest; the first reference is in N(p*).
         nu0: Initial true velocity, shape (3,).
         eta0: Initial pose, shape (3,) (m, m, rad).
         seed: Sensor-noise seed.
-        moving: Whether the run starts moving (its first period is then a change).
     """
 
     kind: str
     refs: FloatArray
+    steps: IntArray
     previous: FloatArray
     nu0: FloatArray
     eta0: FloatArray
     seed: int
-    moving: bool
+
+    def step_refs(self) -> FloatArray:
+        """Return the reference at every physics step, shape (sum(steps), 3)."""
+        out: FloatArray = np.repeat(self.refs, self.steps, axis=0)
+        return out
+
+    def starts(self) -> IntArray:
+        """Return the physics step each period begins at, shape (N,)."""
+        out: IntArray = np.concatenate(([0], np.cumsum(self.steps)[:-1])).astype(np.int64)
+        return out
+
+
+@dataclass(frozen=True, slots=True)
+class Measured:
+    """The largest deviations a set of runs showed, per class.
+
+    Attributes:
+        envelopes: Max |nu - nu_ref| per [class, bin, axis], shape (3, n_bins, 3).
+        position_m: Max |p - pbar| over t <= each bin's end, shape (3, n_bins) (m).
+        heading_rad: Max |psi - psibar| likewise, shape (3, n_bins) (rad).
+        estimation: Max EKF errors (position m, heading rad), shape (2,).
+        periods: Periods per class, shape (3,).
+        samples: Physics samples per class, shape (3,).
+        simulated_s: Simulated time (s).
+    """
+
+    envelopes: FloatArray
+    position_m: FloatArray
+    heading_rad: FloatArray
+    estimation: FloatArray
+    periods: IntArray
+    samples: IntArray
+    simulated_s: float
 
 
 @dataclass(frozen=True, slots=True)
 class BoundRatios:
-    """The worst true deviation from the exact arc over the bound, per class.
+    """Measured deviations over a budget's bounds, per class.
 
     Attributes:
-        position: Max over periods and samples (t > 0) of |p - pbar| / rho, shape (2,).
-        heading: Max of |psi - psibar| / theta, shape (2,).
-        position_m: Largest |p - pbar| (m) per class, shape (2,).
-        heading_rad: Largest |psi - psibar| (rad) per class, shape (2,).
-        periods: Periods judged per class, shape (2,).
+        position: Max over bins of measured |p - pbar| / position_m, shape (3,).
+        heading: Max over bins of measured |psi - psibar| / heading_rad, shape (3,).
+        position_m: Largest |p - pbar| (m) per class, shape (3,).
+        heading_rad: Largest |psi - psibar| (rad) per class, shape (3,).
+        periods: Periods judged per class, shape (3,).
     """
 
     position: FloatArray
@@ -188,24 +249,16 @@ class TransientDerivation:
     """What a derivation measured and the budget it makes.
 
     Attributes:
-        budget: The scenario's ``[transient]``: measured maxima x safety factor, rounded.
-        envelopes: The measured maxima, shape (2, n_bins, 3) [class, bin, axis].
-        estimation: Measured max EKF errors (position m, heading rad), shape (2,).
-        periods: Periods measured per class, shape (2,).
-        samples: Physics samples per class, shape (2,).
-        ratios: The bound checked on the same runs against `budget`.
+        budget: The scenario's ``[transient]``: measured maxima scaled, rounded up.
+        measured: The measured maxima.
+        ratios: The measured maxima over the budget (the margin it leaves, per class).
         seconds: Wall time of the derivation (s).
-        simulated_s: Simulated time (s).
     """
 
     budget: TransientBudget
-    envelopes: FloatArray
-    estimation: FloatArray
-    periods: IntArray
-    samples: IntArray
+    measured: Measured
     ratios: BoundRatios
     seconds: float
-    simulated_s: float = field(default=0.0)
 
 
 def input_grid(scenario: Scenario) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -345,105 +398,153 @@ def _sweeps(g: _Grid) -> list[IntArray]:
     return out
 
 
-def recipe_runs(scenario: Scenario, recipe: TransientRecipe) -> list[Run]:
-    """Return the runs of `recipe` on `scenario`'s input grid (deterministic in the seed)."""
+def period_steps(scenario: Scenario, dt_s: float) -> tuple[int, int]:
+    """Return the fewest and most physics steps of a period: tau and tau + LATE_S.
+
+    Raises:
+        ClosedLoopConfigError: tau is not a whole number of physics steps.
+    """
+    ratio = scenario.tau_s / dt_s
+    if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:
+        raise ClosedLoopConfigError(
+            f"tau_s={scenario.tau_s!r} is not a whole number of physics steps dt_s={dt_s!r}"
+        )
+    return round(ratio), round(ratio) + math.floor(LATE_S / dt_s + 1e-9)
+
+
+def recipe_runs(scenario: Scenario, recipe: TransientRecipe, dt_s: float = 0.01) -> list[Run]:
+    """Return the runs of `recipe` on `scenario`'s input grid (deterministic in the seed).
+
+    Args:
+        scenario: Its input grid and period.
+        recipe: What to fly.
+        dt_s: The physics step the period lengths are whole numbers of (s).
+    """
     g = _Grid(scenario)
     rng = np.random.default_rng(recipe.seed)
+    lengths = np.random.default_rng([recipe.seed, 1])
+    lo_steps, hi_steps = period_steps(scenario, dt_s)
     rest = g.value(g.zero)
     zeros = np.zeros(3)
     seeds = itertools.count(recipe.seed)
-    runs = [
-        Run("tour", euler_tour(scenario, rng), rest, zeros, zeros, next(seeds), False)
-        for _ in range(recipe.tours)
-    ]
+    runs: list[Run] = []
+
+    def add(
+        kind: str, refs: FloatArray, previous: FloatArray, nu0: FloatArray, psi0: float
+    ) -> None:
+        steps: IntArray = np.asarray(
+            lengths.integers(lo_steps, hi_steps + 1, size=refs.shape[0]), dtype=np.int64
+        )
+        eta0 = np.array([0.0, 0.0, psi0])
+        runs.append(Run(kind, refs, steps, previous, nu0, eta0, next(seeds)))
+
+    for _ in range(recipe.tours):
+        add("tour", euler_tour(scenario, rng), rest, zeros, 0.0)
     n_walk = max(1, round(recipe.walk_s / scenario.tau_s))
     for _ in range(recipe.walks):
-        refs = np.array([g.value(i) for i in g.walk(g.zero, n_walk, rng)])
-        runs.append(Run("walk", refs, rest, zeros, zeros, next(seeds), False))
+        add("walk", np.array([g.value(i) for i in g.walk(g.zero, n_walk, rng)]), rest, zeros, 0.0)
     if recipe.sweeps:
-        refs = np.array([g.value(i) for i in _sweeps(g)])
-        runs.append(Run("sweeps", refs, rest, zeros, zeros, next(seeds), False))
+        add("sweeps", np.array([g.value(i) for i in _sweeps(g)]), rest, zeros, 0.0)
     pairs = [(p, u) for p in g.inputs() for u in g.neighbours(p)]
-    n_pairs = round(recipe.moving_share * len(pairs))
+    n_pairs = round(recipe.start_share * len(pairs))
 
     def some_pairs() -> list[tuple[IntArray, IntArray]]:
         if n_pairs >= len(pairs):
             return pairs
         return [pairs[k] for k in sorted(rng.choice(len(pairs), n_pairs, replace=False))]
 
-    for _ in range(recipe.moving):
+    def heading() -> float:
+        return float(rng.uniform(-math.pi, math.pi))
+
+    for _ in range(recipe.starts):
         for star, first in some_pairs():
             p_star = g.value(star)
             nu0 = np.clip(p_star + rng.uniform(-0.5, 0.5, 3) * g.step, g.lo, g.hi)
-            idx = [first, *g.walk(first, recipe.moving_periods - 1, rng)]
-            eta0 = np.array([0.0, 0.0, rng.uniform(-math.pi, math.pi)])
-            refs = np.array([g.value(i) for i in idx])
-            runs.append(Run("moving", refs, p_star, nu0, eta0, next(seeds), True))
-    if recipe.moving_corners:
+            idx = [first, *g.walk(first, recipe.start_periods - 1, rng)]
+            add("start", np.array([g.value(i) for i in idx]), p_star, nu0, heading())
+        for first in g.neighbours(g.zero):
+            idx = [first, *g.walk(first, recipe.start_periods - 1, rng)]
+            add("rest", np.array([g.value(i) for i in idx]), rest, zeros, heading())
+    if recipe.start_corners:
         for star, first in some_pairs():
             p_star = g.value(star)
             away = np.sign(first - star).astype(np.float64)
             away[away == 0.0] = rng.choice((-1.0, 1.0), size=int(np.sum(away == 0.0)))
             nu0 = np.clip(p_star - 0.5 * away * g.step, g.lo, g.hi)
-            refs = np.repeat(g.value(first)[None, :], recipe.moving_periods, axis=0)
-            eta0 = np.array([0.0, 0.0, rng.uniform(-math.pi, math.pi)])
-            runs.append(Run("corner", refs, p_star, nu0, eta0, next(seeds), True))
+            refs = np.repeat(g.value(first)[None, :], recipe.start_periods, axis=0)
+            add("corner", refs, p_star, nu0, heading())
     return runs
 
 
 def classify(run: Run) -> IntArray:
-    """Return the budget class of each period of `run`, shape (N,) (0 hold, 1 change).
+    """Return the budget class of each period of `run`, shape (N,).
 
-    A period holds when its reference equals the one before; the first period of a
-    moving run is a change, and so is the first from rest unless the vessel rests at
-    its previous reference (the input nearest zero is zero).
+    The first period is a start (2); after it a period holds (0) when its reference
+    equals the one before, else it changes (1).
     """
-    prev = np.vstack([run.previous[None, :], run.refs[:-1]])
-    out = np.where(np.all(run.refs == prev, axis=1), BudgetClass.HOLD, BudgetClass.CHANGE)
-    if run.moving or np.any(run.previous != run.nu0):
-        out[0] = BudgetClass.CHANGE
-    return out.astype(np.int64)
+    prev = run.refs[:-1]
+    out = np.full(run.refs.shape[0], BudgetClass.START, dtype=np.int64)
+    same = np.all(run.refs[1:] == prev, axis=1)
+    out[1:] = np.where(same, BudgetClass.HOLD, BudgetClass.CHANGE)
+    return out
+
+
+def fly(run: Run, config: LowLevelConfig) -> ClosedLoopResult:
+    """Fly `run` on the closed loop of `config` (its low level, physics and observer).
+
+    The references are fed per physics step (``command_period_s = dt_s``), so a period
+    may begin between two low-level ticks; the low level still ticks every
+    ``control_period_s`` and reads the reference then, as on the vessel.
+    """
+    cfg = replace(config, command_period_s=config.dt_s, seed=run.seed)
+    return simulate_closed_loop(run.step_refs(), cfg, run.eta0, run.nu0)
 
 
 @dataclass(frozen=True, slots=True)
 class _Periods:
-    """One run cut into periods: binned errors and arc deviations at every physics sample.
+    """One run cut into periods, reduced to bins.
 
     Attributes:
         classes: (N,) budget classes.
-        speed: (N,) reference speeds |u_lin| (m/s).
-        t: (S + 1,) times into the period (s); sample S is the next period's first.
-        binned: (N, n_bins, 3) max |nu - nu_ref| per bin and axis (a period's missing
-            closing sample, at the end of a run, counts as 0).
-        samples: (N,) physics samples of each period (S + 1, S for a run's last).
-        dev_p: (N, S + 1) |p - pbar| (m).
-        dev_psi: (N, S + 1) |psi - psibar| (rad).
+        envelopes: (N, n_bins, 3) max |nu - nu_ref| per bin and axis (both edges).
+        position: (N, n_bins) max |p - pbar| up to each bin's end (m).
+        heading: (N, n_bins) max |psi - psibar| up to each bin's end (rad).
+        samples: (N,) physics samples of each period (its closing sample, the next
+            period's first, included; missing for a run's last period).
         estimation: (2,) max EKF position (m) and heading (rad) errors after the start.
     """
 
     classes: IntArray
-    speed: FloatArray
-    t: FloatArray
-    binned: FloatArray
+    envelopes: FloatArray
+    position: FloatArray
+    heading: FloatArray
     samples: IntArray
-    dev_p: FloatArray
-    dev_psi: FloatArray
     estimation: FloatArray
 
 
 def _periods(
-    run: Run, res: ClosedLoopResult, t: FloatArray, bins: list[slice], after_s: float
+    run: Run, res: ClosedLoopResult, dt_s: float, bin_s: float, n_bins: int, after_s: float
 ) -> _Periods:
     n = run.refs.shape[0]
-    steps = t.shape[0] - 1
+    steps = run.steps
+    longest = int(steps.max())
     total = res.t_s.shape[0]
-    idx = np.arange(n)[:, None] * steps + np.arange(steps + 1)[None, :]
-    valid = idx < total
+    k = np.arange(longest + 1)
+    t: FloatArray = k.astype(np.float64) * dt_s
+    idx = run.starts()[:, None] + k[None, :]
+    valid = (k[None, :] <= steps[:, None]) & (idx < total)
     idx = np.minimum(idx, total - 1)
     error = np.abs(res.nu[idx] - run.refs[:, None, :])
     error[~valid] = 0.0
-    binned = np.stack([error[:, b].max(axis=1) for b in bins], axis=1)
-    start = res.eta[np.arange(n) * steps]  # (N, 3) true pose at each period's start
+    eps = 1e-9 * max(1.0, bin_s)
+    envelopes = np.zeros((n, n_bins, 3))
+    ends = np.zeros(n_bins, dtype=np.int64)
+    for j in range(n_bins):
+        inside = np.nonzero((t >= j * bin_s - eps) & (t <= (j + 1) * bin_s + eps))[0]
+        if inside.size:
+            envelopes[:, j] = error[:, inside[0] : inside[-1] + 1].max(axis=1)
+        ends[j] = np.nonzero(t <= (j + 1) * bin_s + eps)[0][-1]
+    start = res.eta[run.starts()]  # (N, 3) true pose at each period's start
     d = displacement(run.refs, t)  # (N, S + 1, 2) in the start body frame
     c, s = np.cos(start[:, 2])[:, None], np.sin(start[:, 2])[:, None]
     pbar_x = start[:, 0:1] + c * d[..., 0] - s * d[..., 1]
@@ -459,86 +560,75 @@ def _periods(
         est[1] = np.max(np.abs(wrap_angles(res.eta_hat[late, 2] - res.eta[late, 2])))
     return _Periods(
         classes=classify(run),
-        speed=np.hypot(run.refs[:, 0], run.refs[:, 1]),
-        t=t,
-        binned=binned,
+        envelopes=envelopes,
+        position=np.maximum.accumulate(dev_p, axis=1)[:, ends],
+        heading=np.maximum.accumulate(dev_psi, axis=1)[:, ends],
         samples=valid.sum(axis=1),
-        dev_p=dev_p,
-        dev_psi=dev_psi,
         estimation=est,
     )
 
 
-def _bin_slices(t: FloatArray, bin_s: float, n_bins: int) -> list[slice]:
-    """Return, per bin j, the samples of `t` (T,) in [j bin_s, (j + 1) bin_s] (both edges)."""
-    eps = 1e-9 * max(1.0, bin_s)
-    out = []
-    for j in range(n_bins):
-        inside = np.nonzero((t >= j * bin_s - eps) & (t <= (j + 1) * bin_s + eps))[0]
-        out.append(slice(int(inside[0]), int(inside[-1]) + 1))
-    return out
+def measure(
+    scenario: Scenario,
+    recipe: TransientRecipe,
+    config: LowLevelConfig | None = None,
+    bin_s: float | None = None,
+) -> Measured:
+    """Fly every run of `recipe` and return the largest deviations per class and bin.
 
+    Args:
+        scenario: Its input grid and period.
+        recipe: What to fly.
+        config: The low level (default: the vessel's); its ``command_period_s`` is not
+            used (the references are fed per physics step).
+        bin_s: Bin width (s); default the recipe's. As many bins as cover tau + LATE_S.
 
-def _bound_ratios(budget: TransientBudget, periods: list[_Periods]) -> BoundRatios:
-    """Return the worst deviation from the exact arc over `budget`'s bound, per class.
-
-    Samples at t = 0 (deviation and bound both zero) and where a bound is zero with a
-    zero deviation are skipped; a deviation where the bound is zero counts as inf.
+    Raises:
+        ClosedLoopConfigError: tau is not a whole number of physics steps.
     """
-    pos = np.zeros(N_CLASSES)
-    head = np.zeros(N_CLASSES)
-    pos_m = np.zeros(N_CLASSES)
-    head_rad = np.zeros(N_CLASSES)
+    cfg = LowLevelConfig() if config is None else config
+    width = recipe.bin_s if bin_s is None else bin_s
+    n_bins = horizon_bins(scenario.tau_s, width)
+    env = np.zeros((N_CLASSES, n_bins, 3))
+    position = np.zeros((N_CLASSES, n_bins))
+    heading = np.zeros((N_CLASSES, n_bins))
+    est = np.zeros(2)
     counts = np.zeros(N_CLASSES, dtype=np.int64)
-    for p in periods:
-        later = p.t > 0.0
+    samples = np.zeros(N_CLASSES, dtype=np.int64)
+    simulated = 0.0
+    for run in recipe_runs(scenario, recipe, cfg.dt_s):
+        res = fly(run, cfg)
+        p = _periods(run, res, cfg.dt_s, width, n_bins, recipe.estimation_after_s)
+        simulated += float(run.steps.sum()) * cfg.dt_s
+        est = np.maximum(est, p.estimation)
         for cls in range(N_CLASSES):
             rows = p.classes == cls
             if not np.any(rows):
                 continue
             counts[cls] += int(rows.sum())
-            rho = budget.position_bound_m(cls, p.speed[rows], p.t[later])
-            theta = budget.heading_bound_rad(cls, p.t[later])[None, :]
-            dp = p.dev_p[rows][:, later]
-            dh = p.dev_psi[rows][:, later]
-            pos[cls] = max(pos[cls], _worst_ratio(dp, rho))
-            head[cls] = max(head[cls], _worst_ratio(dh, np.broadcast_to(theta, dh.shape)))
-            pos_m[cls] = max(pos_m[cls], float(dp.max(initial=0.0)))
-            head_rad[cls] = max(head_rad[cls], float(dh.max(initial=0.0)))
-    return BoundRatios(pos, head, pos_m, head_rad, counts)
+            samples[cls] += int(p.samples[rows].sum())
+            env[cls] = np.maximum(env[cls], p.envelopes[rows].max(axis=0))
+            position[cls] = np.maximum(position[cls], p.position[rows].max(axis=0))
+            heading[cls] = np.maximum(heading[cls], p.heading[rows].max(axis=0))
+    return Measured(env, position, heading, est, counts, samples, simulated)
 
 
-def _worst_ratio(dev: FloatArray, bound: FloatArray) -> float:
+def _ratios(budget: TransientBudget, measured: Measured) -> BoundRatios:
+    """Return `measured` over `budget`'s bounds per class (a deviation over 0 counts inf)."""
+    return BoundRatios(
+        position=_worst_ratio(measured.position_m, budget.position_m),
+        heading=_worst_ratio(measured.heading_rad, budget.heading_rad),
+        position_m=measured.position_m.max(axis=1),
+        heading_rad=measured.heading_rad.max(axis=1),
+        periods=measured.periods,
+    )
+
+
+def _worst_ratio(dev: FloatArray, bound: FloatArray) -> FloatArray:
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(bound > 0.0, dev / bound, np.where(dev > 0.0, np.inf, 0.0))
-    return float(ratio.max(initial=0.0))
-
-
-def _measure(
-    scenario: Scenario, recipe: TransientRecipe, config: LowLevelConfig | None = None
-) -> tuple[list[_Periods], float]:
-    """Fly every run of `recipe`; return the periods and the simulated time (s).
-
-    Raises:
-        ClosedLoopConfigError: A bin is not a whole number of physics steps.
-    """
-    cfg = LowLevelConfig(command_period_s=scenario.tau_s) if config is None else config
-    steps = cfg.steps_per_command
-    bin_s = cfg.command_period_s / recipe.n_bins
-    if abs(bin_s / cfg.dt_s - round(bin_s / cfg.dt_s)) > 1e-6:
-        raise ClosedLoopConfigError(
-            f"a bin of {bin_s!r} s ({recipe.n_bins} per period) is not a whole number of "
-            f"physics steps dt_s={cfg.dt_s!r}"
-        )
-    t: FloatArray = np.arange(steps + 1, dtype=np.float64) * cfg.dt_s
-    bins = _bin_slices(t, bin_s, recipe.n_bins)
-    runs = recipe_runs(scenario, recipe)
-    periods = []
-    for run in runs:
-        res = simulate_closed_loop(run.refs, replace(cfg, seed=run.seed), run.eta0, run.nu0)
-        periods.append(_periods(run, res, t, bins, recipe.estimation_after_s))
-    simulated = sum(r.refs.shape[0] for r in runs) * cfg.command_period_s
-    return periods, simulated
+    out: FloatArray = ratio.max(axis=1)
+    return out
 
 
 def derive_transient(
@@ -551,46 +641,31 @@ def derive_transient(
     Args:
         scenario: Its input grid and command period ``tau_s`` are used.
         recipe: How to measure (default: :class:`TransientRecipe`).
-        config: The low level (default: the vessel's, at the scenario's period).
+        config: The low level (default: the vessel's).
 
     Returns:
-        The budget (measured maxima x safety factor, rounded up to ``DIGITS``), the raw
-        maxima and the bound checked on the same runs.
+        The budget (deviations x safety factor + margin, envelopes and estimation x
+        safety factor, all rounded up to ``DIGITS``), the raw maxima and their ratio to
+        the budget.
     """
     rec = TransientRecipe() if recipe is None else recipe
     t0 = time.perf_counter()
-    periods, simulated = _measure(scenario, rec, config)
-    bin_s = scenario.tau_s / rec.n_bins
-    env = np.zeros((N_CLASSES, rec.n_bins, 3))
-    est = np.zeros(2)
-    counts = np.zeros(N_CLASSES, dtype=np.int64)
-    samples = np.zeros(N_CLASSES, dtype=np.int64)
-    for p in periods:
-        est = np.maximum(est, p.estimation)
-        for cls in range(N_CLASSES):
-            rows = p.classes == cls
-            if not np.any(rows):
-                continue
-            counts[cls] += int(rows.sum())
-            samples[cls] += int(p.samples[rows].sum())
-            env[cls] = np.maximum(env[cls], p.binned[rows].max(axis=0))
+    m = measure(scenario, rec, config)
+    f = rec.safety_factor
     budget = TransientBudget(
-        bin_s=bin_s,
-        envelopes=round_up(env * rec.safety_factor),
-        estimation_position_m=float(round_up(est[0] * rec.safety_factor)),
-        estimation_heading_rad=float(round_up(est[1] * rec.safety_factor)),
+        bin_s=rec.bin_s,
+        envelopes=round_up(m.envelopes * f),
+        position_m=round_up(m.position_m * f + rec.position_margin_m),
+        heading_rad=round_up(m.heading_rad * f + rec.heading_margin_rad),
+        estimation_position_m=float(round_up(m.estimation[0] * f)),
+        estimation_heading_rad=float(round_up(m.estimation[1] * f)),
         source=rec.describe(),
     )
-    ratios = _bound_ratios(budget, periods)
     return TransientDerivation(
         budget=budget,
-        envelopes=env,
-        estimation=est,
-        periods=counts,
-        samples=samples,
-        ratios=ratios,
+        measured=m,
+        ratios=_ratios(budget, m),
         seconds=time.perf_counter() - t0,
-        simulated_s=simulated,
     )
 
 
@@ -601,8 +676,7 @@ def check_bound(
     config: LowLevelConfig | None = None,
 ) -> BoundRatios:
     """Fly `recipe` (fresh seeds: choose its ``seed``) and judge every period by `budget`."""
-    periods, _ = _measure(scenario, recipe, config)
-    return _bound_ratios(budget, periods)
+    return _ratios(budget, measure(scenario, recipe, config, bin_s=budget.bin_s))
 
 
 def toml_table(budget: TransientBudget) -> str:
@@ -612,8 +686,11 @@ def toml_table(budget: TransientBudget) -> str:
         return "[" + ", ".join(f"{v:.{DIGITS}f}" for v in values) + "]"
 
     lines = ["[transient]", f"bin_s = {budget.bin_s:g}"]
-    for cls, prefix in ((BudgetClass.HOLD, "hold"), (BudgetClass.CHANGE, "change")):
-        for axis, suffix in enumerate(("surge_mps", "sway_mps", "yaw_rate_radps")):
+    for cls, prefix in enumerate(CLASS_NAMES):
+        lines.append(f"{prefix}_position_m = {row(budget.position_m[cls])}")
+        lines.append(f"{prefix}_heading_rad = {row(budget.heading_rad[cls])}")
+    for cls, prefix in enumerate(CLASS_NAMES):
+        for axis, suffix in enumerate(_AXES):
             lines.append(f"{prefix}_{suffix} = {row(budget.envelopes[cls, :, axis])}")
     lines.append(f"estimation_position_m = {budget.estimation_position_m:.{DIGITS}f}")
     lines.append(f"estimation_heading_rad = {budget.estimation_heading_rad:.{DIGITS}f}")

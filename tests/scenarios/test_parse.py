@@ -63,14 +63,27 @@ def _edit(path: list[str], value: Any) -> dict[str, Any]:
         (["transient"], [1.0], r"key 'transient' must be a table"),
         (["transient", "bin_s"], KeyError, r"missing key transient.'bin_s'"),
         (["transient", "bin_s"], 0.3, r"transient.'bin_s' = 0.3 must be > 0 and divide"),
-        (["transient", "bin_s"], 0.5, r"transient.'hold_surge_mps' must be a list of 4 finite"),
-        (["transient", "hold_sway_mps"], [0.01] * 7, r"'hold_sway_mps' must be a list of 8"),
-        (["transient", "change_yaw_rate_radps"], [0.1] * 7 + [-0.1], r"'change_yaw_rate.* >= 0"),
+        (
+            ["transient", "bin_s"],
+            0.5,
+            r"transient.'hold_position_m' must be a list of 5 finite.*0.5-s bin up to "
+            r"timing.'tau_s' \+ 0.1 s",
+        ),
+        (["transient", "hold_sway_mps"], [0.01] * 8, r"'hold_sway_mps' must be a list of 9"),
+        (["transient", "start_position_m"], [0.1] * 10, r"'start_position_m' must be a list of 9"),
+        (["transient", "change_yaw_rate_radps"], [0.1] * 8 + [-0.1], r"'change_yaw_rate.* >= 0"),
         (["transient", "change_surge_mps"], KeyError, r"missing key transient.'change_surge_mps'"),
+        (["transient", "start_heading_rad"], KeyError, r"missing key transient.'start_heading_"),
+        (["transient", "hold_heading_rad"], [0.1] * 8 + [-0.1], r"'hold_heading_rad' must be >= 0"),
+        (
+            ["transient", "change_position_m"],
+            [0.1, 0.2, 0.15] + [0.2] * 6,
+            r"'change_position_m' must not decrease .* got 0.2 then 0.15 at bins 1-2",
+        ),
         (["transient", "estimation_position_m"], -0.001, r"'estimation_position_m' must be >= 0"),
         (["transient", "estimation_heading_rad"], "1", r"'estimation_heading_rad' must be a fin"),
         (["transient", "source"], 3, r"transient.'source' must be a string"),
-        (["transient", "hold_surge_deg"], [0.0] * 8, r"unknown key transient.'hold_surge_deg'"),
+        (["transient", "hold_surge_deg"], [0.0] * 9, r"unknown key transient.'hold_surge_deg'"),
         (
             ["abstraction", "obstacle_inflation_m"],
             3.0,
@@ -122,11 +135,16 @@ def test_transient_table_reads_into_the_budget() -> None:
     s = parse_scenario(data)
     raw = data["transient"]
     b = s.transient
-    assert b.n_bins == 8
-    assert b.horizon_s() == pytest.approx(s.tau_s)
+    assert b.n_bins == 9
+    assert b.n_classes == 3
+    assert b.horizon_s() == pytest.approx(s.tau_s + 0.25)  # covers tau + 0.1 s
+    assert b.position_m[0].tolist() == raw["hold_position_m"]
+    assert b.position_m[2].tolist() == raw["start_position_m"]
+    assert b.heading_rad[1].tolist() == raw["change_heading_rad"]
     assert b.envelopes[0, :, 0].tolist() == raw["hold_surge_mps"]
     assert b.envelopes[0, :, 2].tolist() == raw["hold_yaw_rate_radps"]
     assert b.envelopes[1, :, 1].tolist() == raw["change_sway_mps"]
+    assert b.envelopes[2, :, 2].tolist() == raw["start_yaw_rate_radps"]
     assert b.estimation_position_m == raw["estimation_position_m"]
     assert b.source == raw["source"]
 
@@ -134,7 +152,9 @@ def test_transient_table_reads_into_the_budget() -> None:
 def test_missing_transient_table_is_the_zero_budget() -> None:
     s = parse_scenario(_edit(["transient"], KeyError))
     assert s.transient.is_zero()
-    assert s.transient.horizon_s() == pytest.approx(s.tau_s)
+    assert s.transient.n_bins == 9
+    assert s.transient.horizon_s() >= s.tau_s + 0.1
     assert s.digest() != parse_scenario(_paper_data()).digest()  # the digest covers it
-    zeroed = _edit(["transient", "hold_surge_mps"], [0.0] * 8)
-    assert parse_scenario(zeroed).digest() != parse_scenario(_paper_data()).digest()
+    for key in ("hold_surge_mps", "start_position_m", "change_heading_rad"):
+        zeroed = _edit(["transient", key], [0.0] * 9)
+        assert parse_scenario(zeroed).digest() != parse_scenario(_paper_data()).digest()

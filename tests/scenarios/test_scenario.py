@@ -47,5 +47,7 @@ def test_with_transient_replaces_the_budget_and_the_digest() -> None:
     assert zero.digest() != s.digest()
     assert zero.with_transient(s.transient) == s
     assert zero.with_transient(s.transient).digest() == s.digest()
-    with pytest.raises(ScenarioError, match=r"covers 4.0 s, not one period timing.'tau_s'"):
+    with pytest.raises(ScenarioError, match=r"with 9 bins covers 4.5 s, not a period held late"):
         s.with_transient(TransientBudget.zero(2 * s.tau_s))
+    with pytest.raises(ScenarioError, match=r"12 bins covers 3.0 s, .* \(need 9 bins\)"):
+        s.with_transient(TransientBudget.zero(s.tau_s, 12))
