@@ -29,6 +29,7 @@ from hil.adapters.interfaces import (
 )
 from hil.core.records import Decision, EventLevel
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
+from hil.core.transient import START_PERIODS
 from hil.runtime.events import EventCode
 from hil.runtime.resynthesis import Resynthesizer
 from hil.runtime.settings import NS_PER_S, LoopConfig
@@ -128,9 +129,12 @@ class Runtime:
         self._next_decision_ns = 0
         self._nu_ref = np.zeros(3)
         self._previous_input = np.zeros(3)
-        # Input-grid index of the reference in force; None: the next decision is a first
-        # one (start, or after a stop or a hold), taken from the estimated velocity.
+        # Input-grid index of the reference in force; None: the next decision starts
+        # afresh (start, or after a stop or a hold) from the estimated velocity.
         self._reference_index: int | None = None
+        # First decisions still to take: a start counts START_PERIODS periods (budget
+        # class START), the vessel possibly moving and its thrusters still idle.
+        self._first_left = START_PERIODS
         self._consecutive_sink_failures = 0
         self._start_ns = world.clock.now_ns()
         self.stats.start_ns = self._start_ns
@@ -373,7 +377,9 @@ class Runtime:
                 )
             return
         cell = controller.locate(eta_hat)
-        first = self._reference_index is None
+        if self._reference_index is None:
+            self._first_left = START_PERIODS
+        first = self._first_left > 0
         reference = (
             controller.nearest_input(nu_hat)
             if self._reference_index is None
@@ -420,6 +426,8 @@ class Runtime:
         # A stop (reference zero outside the lattice step) is not budgeted: after it the
         # next decision starts afresh from the estimated velocity.
         self._reference_index = chosen_index if chosen_index >= 0 else None
+        if chosen_index >= 0:
+            self._first_left = max(self._first_left - 1, 0)
         self.stats.decisions += 1
         self.log.decision(
             Decision.from_arrays(

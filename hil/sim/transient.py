@@ -61,7 +61,14 @@ from numpy.typing import NDArray
 
 from hil.controllers.symbolic.abstraction import displacement
 from hil.core.geometry import wrap_angles
-from hil.core.transient import LATE_S, N_CLASSES, BudgetClass, TransientBudget, horizon_bins
+from hil.core.transient import (
+    LATE_S,
+    N_CLASSES,
+    START_PERIODS,
+    BudgetClass,
+    TransientBudget,
+    horizon_bins,
+)
 from hil.scenarios import Scenario
 from hil.sim.closed_loop import ClosedLoopResult, LowLevelConfig, simulate_closed_loop
 from hil.sim.errors import ClosedLoopConfigError
@@ -120,7 +127,8 @@ class TransientRecipe:
             half-step box around p* farthest from u, then u held.
         start_share: Share of the pairs each start pass flies (drawn at random; 1: every
             pair), for quick checks.
-        start_periods: Periods of each start run (the first is of class start).
+        start_periods: Periods of each start run (the first START_PERIODS are of class
+            start, the one after them shows what a start leaves to a hold or change).
         bin_s: Width of the time bins (s); as many bins as cover tau + LATE_S.
         safety_factor: Factor on every measured maximum.
         position_margin_m: Added to each scaled position deviation (m).
@@ -137,7 +145,7 @@ class TransientRecipe:
     starts: int = 1
     start_corners: bool = True
     start_share: float = 1.0
-    start_periods: int = 2
+    start_periods: int = START_PERIODS + 1
     bin_s: float = 0.25
     safety_factor: float = 1.25
     position_margin_m: float = 0.002
@@ -479,13 +487,14 @@ def recipe_runs(scenario: Scenario, recipe: TransientRecipe, dt_s: float = 0.01)
 def classify(run: Run) -> IntArray:
     """Return the budget class of each period of `run`, shape (N,).
 
-    The first period is a start (2); after it a period holds (0) when its reference
-    equals the one before, else it changes (1).
+    The first :data:`~hil.core.transient.START_PERIODS` periods are a start (2); after
+    them a period holds (0) when its reference equals the one before, else it changes (1).
     """
     prev = run.refs[:-1]
     out = np.full(run.refs.shape[0], BudgetClass.START, dtype=np.int64)
     same = np.all(run.refs[1:] == prev, axis=1)
     out[1:] = np.where(same, BudgetClass.HOLD, BudgetClass.CHANGE)
+    out[:START_PERIODS] = BudgetClass.START
     return out
 
 

@@ -89,6 +89,11 @@ class DeviationBudget(Protocol):
     """
 
     @property
+    def n_classes(self) -> int:
+        """Number of classes the budget holds (2 or 3)."""
+        ...
+
+    @property
     def estimation_position_m(self) -> float:
         """Bound on the estimate's position error (m)."""
         ...
@@ -409,7 +414,7 @@ def build_tables(
     eps_rad = float(budget.estimation_heading_rad)
     speed = np.hypot(arr[:, 0], arr[:, 1])
     per_class = []
-    n_budget = int(getattr(budget, "n_classes", 2))
+    n_budget = int(budget.n_classes)
     for cls in range(N_CLASSES):
         # Each class contains the ones below it (a change is never budgeted below a
         # hold, a first command never below a change); a budget without a class of its

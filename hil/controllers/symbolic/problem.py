@@ -13,17 +13,13 @@ from hil.controllers.symbolic.abstraction import Tables, tables_for
 from hil.controllers.symbolic.grid import Grid, obstacle_mask, target_mask
 from hil.controllers.symbolic.hull import free_masks
 from hil.core.shapes import Rect, Shape
-from hil.core.transient import TransientBudget
+from hil.core.transient import LATE_S, TransientBudget
 from hil.scenarios import Scenario
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
 __all__ = ["SymbolicProblem"]
-
-LATE_S = 0.1
-"""How late a command may come and stay covered by its tables (s): two 20-Hz ticks."""
-
 
 @dataclass(frozen=True, slots=True, eq=False)
 class SymbolicProblem:

@@ -88,13 +88,21 @@ def _boxes_winning(win: BoolArray, succ: I32Array, head: I32Array, u: int, pad: 
     return out
 
 
-def dense_fixed_point(tables: Tables, free: BoolArray, target: BoolArray) -> tuple[I32Array, int]:
+def dense_fixed_point(
+    tables: Tables,
+    free: BoolArray,
+    target: BoolArray,
+    max_levels: int | None = None,
+    tube: BoolArray | None = None,
+) -> tuple[I32Array, int]:
     """Return V (m, nx, ny, npsi) indexed [reference, i, j, k] (-1 losing) and the levels.
 
     Args:
         tables: The abstraction.
         free: Free cells per heading range, shape (n_ranges, nx, ny).
         target: Target cells, shape (nx, ny, npsi).
+        max_levels: Stop after this many levels (for timing a few); None runs to the end.
+        tube: :func:`dense_tube_free` of `free`, if already computed.
     """
     lattice = InputLattice.of(tables.inputs)
     m = tables.n_inputs

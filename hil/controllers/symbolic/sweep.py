@@ -18,9 +18,9 @@ to 8 successor cells along y is two reads. The layers are the inner axis so that
 to 26 layers a B_u joins share cache lines. Padding rows stay
 zero (not winning: outside the grid), heading rows k < 0 or k >= npsi copy the rows they
 wrap to. A successor box [ox0, ox1] x [oy0, oy1] x [ok0, ok1] of 64 cells at once is the
-AND over rows (i + ox, k + ok) of their y-runs shifted by oy0. The tube test is precomputed per solve as
-"viable" words (the tube is free of cells blocked for the hull, :mod:`hull`), shape
-(2, nx, npsi, m, nw). Values (the level a state joined at) are kept as bit planes
+AND over rows (i + ox, k + ok) of their y-runs shifted by oy0. The tube test is
+precomputed per solve as "viable" words (the tube is free of cells blocked for the hull,
+:mod:`hull`), shape (3, nx, npsi, m, nw). Values (the level a state joined at) are kept as bit planes
 (nx, npsi, m, nw, n_planes): bit q of the value of a state is its bit in plane q.
 
 The fixed point follows the frontier: after each level only rows (u, i, k) whose

@@ -309,8 +309,9 @@ class Synthesizer:
         if levels < 0:
             raise GridError(f"the fixed point needs more than {2**N_PLANES - 1} levels")
         seconds = time.perf_counter() - t0
+        winning = np.ascontiguousarray(W[0])
         return Controller(
-            t, lat, np.ascontiguousarray(W[0]), planes, viable, self._pads, obstacles.astype(bool), SynthesisStats(
+            t, lat, winning, planes, viable, self._pads, obstacles.astype(bool), SynthesisStats(
                 levels=int(levels), seconds=seconds, winning_cells=0,
                 free_cells=int((~obstacles).sum()) * npsi if free_cells is None else free_cells,
                 target_cells=int(target.sum()),
