@@ -135,6 +135,7 @@ class Runtime:
         # First decisions still to take: a start counts START_PERIODS periods (budget
         # class START), the vessel possibly moving and its thrusters still idle.
         self._first_left = START_PERIODS
+        self._estimating_since_ns: int | None = None
         self._consecutive_sink_failures = 0
         self._start_ns = world.clock.now_ns()
         self.stats.start_ns = self._start_ns
@@ -188,7 +189,9 @@ class Runtime:
             return
         eta_hat, nu_hat = estimate
         self.log.estimate(t_ns, eta_hat, nu_hat)
-        if t_ns >= self._next_decision_ns:
+        if self._estimating_since_ns is None:
+            self._estimating_since_ns = t_ns
+        if t_ns >= self._next_decision_ns and self._observer_settled(t_ns):
             self._decide(t_ns, eta_hat, nu_hat)
             self._next_decision_ns = t_ns + round(self.config.decision_period_s * NS_PER_S)
             if self._abort is not None:
@@ -338,6 +341,13 @@ class Runtime:
         )
         self._send(ThrusterCommand.zero(t_ns))
 
+    def _observer_settled(self, t_ns: int) -> bool:
+        """Return whether a decision may be taken now (a first one waits for the filter)."""
+        if self._reference_index is not None or self._estimating_since_ns is None:
+            return self._reference_index is not None
+        settle_ns = round(self.config.observer_settle_s * NS_PER_S)
+        return t_ns - self._estimating_since_ns >= settle_ns
+
     def _pose_is_stale(self, t_ns: int) -> bool:
         timeout_ns = self.config.pose_timeout_s * NS_PER_S
         # Before the first pose, allow one timeout from the start for the feed to come up.
@@ -346,6 +356,7 @@ class Runtime:
         if not stale and self.mode is Mode.HOLD:
             self.mode = Mode.RUNNING if self.controller is not None else Mode.WAITING
             self._next_decision_ns = t_ns
+            self._estimating_since_ns = None  # the filter settles again before deciding
             self._event(t_ns, EventLevel.INFO, EventCode.POSE_BACK, "pose feed is back")
         return stale
 
