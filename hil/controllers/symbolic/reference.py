@@ -67,8 +67,12 @@ def _boxes_winning(win: BoolArray, succ: I32Array, head: I32Array, u: int, pad: 
     succ has shape (npsi, m, 4), head (m, 2); outside the grid is losing.
     """
     nx, ny, npsi = win.shape
-    padded = np.zeros((nx + 2 * pad, ny + 2 * pad, 3 * npsi), dtype=np.int32)
-    padded[pad : pad + nx, pad : pad + ny] = np.concatenate([win, win, win], axis=2)
+    # Heading offsets may exceed a full circle (fast turns): enough copies of the
+    # headings on each side that every offset reads a copy.
+    wraps = max(1, -(-int(np.abs(head[u]).max()) // npsi))
+    reps = 2 * wraps + 1
+    padded = np.zeros((nx + 2 * pad, ny + 2 * pad, reps * npsi), dtype=np.int32)
+    padded[pad : pad + nx, pad : pad + ny] = np.concatenate([win] * reps, axis=2)
     s = np.zeros((padded.shape[0] + 1, padded.shape[1] + 1, padded.shape[2] + 1), dtype=np.int32)
     s[1:, 1:, 1:] = padded.cumsum(0).cumsum(1).cumsum(2)
     ii = np.arange(nx)[:, None, None] + pad
@@ -78,8 +82,8 @@ def _boxes_winning(win: BoolArray, succ: I32Array, head: I32Array, u: int, pad: 
     x1 = ii + succ[:, u, 1][None, None, :] + 1
     y0 = jj + succ[:, u, 2][None, None, :]
     y1 = jj + succ[:, u, 3][None, None, :] + 1
-    z0 = (ks + npsi + head[u, 0])[None, None, :]
-    z1 = (ks + npsi + head[u, 1] + 1)[None, None, :]
+    z0 = (ks + wraps * npsi + head[u, 0])[None, None, :]
+    z1 = (ks + wraps * npsi + head[u, 1] + 1)[None, None, :]
     count = (
         s[x1, y1, z1] - s[x0, y1, z1] - s[x1, y0, z1] - s[x1, y1, z0]
         + s[x0, y0, z1] + s[x0, y1, z0] + s[x1, y0, z0] - s[x0, y0, z0]

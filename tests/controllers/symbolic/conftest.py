@@ -1,39 +1,46 @@
-"""Shared fixtures: the coarse scenario, its tables (cached in a temporary folder), controller."""
+"""Shared fixtures: the tiny problem (tests.controllers.symbolic.tiny), its tables, controllers.
+
+Tables are built without the disk cache; controllers are solved with the memo off, so
+that no test sees another's controller object.
+"""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import pytest
 
-from hil.controllers.symbolic import Controller, SymbolicProblem, Synthesizer, Tables, tables_for
-from hil.scenarios import Scenario, TrackingMargin, load_scenario
+from hil.controllers.symbolic import Controller, SymbolicProblem, Synthesizer, Tables
+from tests.controllers.symbolic import tiny
 
 
 @pytest.fixture(scope="session")
-def cache_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return tmp_path_factory.mktemp("symbolic-cache")
+def problem() -> SymbolicProblem:
+    return tiny.problem()
 
 
 @pytest.fixture(scope="session")
-def coarse() -> Scenario:
-    # The known answers below are the paper's abstraction (margin zero); the packaged
-    # scenario carries the low level's margin, which tests that need it set themselves.
-    return load_scenario("coarse").with_margin(TrackingMargin())
+def tables(problem: SymbolicProblem) -> Tables:
+    return problem.tables(use_cache=False)[0]
 
 
 @pytest.fixture(scope="session")
-def coarse_problem(coarse: Scenario) -> SymbolicProblem:
-    return SymbolicProblem.from_scenario(coarse)
+def controller(problem: SymbolicProblem, tables: Tables) -> Controller:
+    out = Synthesizer(tables, memo=False).solve_problem(problem)
+    assert out.has_winning_start
+    return out
 
 
 @pytest.fixture(scope="session")
-def coarse_tables(coarse_problem: SymbolicProblem, cache_dir: Path) -> Tables:
-    p = coarse_problem
-    tables, _ = tables_for(p.grid, p.inputs, p.tau_s, p.margin, cache_dir=cache_dir)
-    return tables
+def zero_problem() -> SymbolicProblem:
+    return tiny.problem(tiny.zero_budget())
 
 
 @pytest.fixture(scope="session")
-def coarse_controller(coarse_problem: SymbolicProblem, coarse_tables: Tables) -> Controller:
-    return Synthesizer(coarse_tables).solve_sets(coarse_problem.obstacles, coarse_problem.target)
+def zero_tables(zero_problem: SymbolicProblem) -> Tables:
+    return zero_problem.tables(use_cache=False)[0]
+
+
+@pytest.fixture(scope="session")
+def zero_controller(zero_problem: SymbolicProblem, zero_tables: Tables) -> Controller:
+    out = Synthesizer(zero_tables, memo=False).solve_problem(zero_problem)
+    assert out.has_winning_start
+    return out

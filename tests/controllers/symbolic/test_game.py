@@ -84,7 +84,10 @@ def test_kernel_equals_the_dense_solver(
     dense, levels = dense_fixed_point(t, free, problem.target_cells())
     assert levels == controller.stats.levels
     assert controller.stats.winning_cells > controller.stats.target_cells
-    threaded = Synthesizer(t, threads=2).solve_problem(problem)
+    # memo=False: the memo would hand back the serial controller for the same masks.
+    threaded = Synthesizer(t, threads=2, memo=False).solve_problem(problem)
+    assert threaded is not controller
+    assert threaded.stats.threads == 2
     for p in range(t.n_inputs):
         np.testing.assert_array_equal(controller.layer_values(p), dense[p], err_msg=f"layer {p}")
         np.testing.assert_array_equal(threaded.layer_values(p), dense[p], err_msg=f"layer {p}")
@@ -152,7 +155,8 @@ def test_listed_inputs_are_safe_when_flown(
         p = int(rng.integers(controller.inputs.shape[0]))
         if not len(layers[p]):
             continue
-        cell = tuple(int(c) for c in layers[p][rng.integers(len(layers[p]))])
+        i, j, k = (int(c) for c in layers[p][rng.integers(len(layers[p]))])
+        cell = (i, j, k)
         v0 = controller.cell_decision_value(cell, p, first)
         if v0 <= 0:
             continue
@@ -168,8 +172,10 @@ def test_listed_inputs_are_safe_when_flown(
             for pose in path[::10]:
                 hull = Polygon.rotated_rect((pose[0], pose[1]), HULL, pose[2])
                 v = hull.vertices()
-                assert v[:, 0].min() >= ARENA.x_min_m and v[:, 0].max() <= ARENA.x_max_m
-                assert v[:, 1].min() >= ARENA.y_min_m and v[:, 1].max() <= ARENA.y_max_m
+                assert v[:, 0].min() >= ARENA.x_min_m
+                assert v[:, 0].max() <= ARENA.x_max_m
+                assert v[:, 1].min() >= ARENA.y_min_m
+                assert v[:, 1].max() <= ARENA.y_max_m
                 assert not shapes_overlap(hull, OBSTACLE), (cell, p, int(u), pose)
                 assert not (
                     inflated.x_min_m < pose[0] < inflated.x_max_m
