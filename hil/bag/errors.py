@@ -15,6 +15,7 @@ __all__ = [
     "FrameError",
     "MessageDecodeError",
     "NotAHilRunError",
+    "OldLogFormatError",
     "RecordValueError",
     "RecorderClosedError",
     "RecorderError",
@@ -51,6 +52,10 @@ class SchemaError(BagError):
 
 class MessageDecodeError(BagError):
     """One message's payload cannot be decoded with its type."""
+
+
+class OldLogFormatError(BagFormatError):
+    """A hil log of an older layout this code cannot judge (its message says why)."""
 
 
 class NotAHilRunError(BagError):

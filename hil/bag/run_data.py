@@ -34,7 +34,7 @@ from __future__ import annotations
 import enum
 import math
 import re
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
@@ -45,7 +45,7 @@ from numpy.typing import NDArray
 from hil.bag import topics
 from hil.bag.columns import to_columns
 from hil.bag.decoding import to_record
-from hil.bag.errors import BagError, FrameError, NotAHilRunError
+from hil.bag.errors import BagError, FrameError, NotAHilRunError, OldLogFormatError
 from hil.bag.messages import Record
 from hil.bag.reader import BagInfo, BagReader, SkippedMessage
 from hil.bag.run_info import RunInfo
@@ -487,6 +487,16 @@ def _layout_key(layout: Layout) -> tuple[int, object]:
     return layout.t_ns, layout.rectangles
 
 
+def _require_current_format(path: str | Path, custom: Mapping[str, str]) -> None:
+    """Refuse a log of hil format 1 (decisions without the reference in force)."""
+    if custom.get("hil_format") == "1":
+        raise OldLogFormatError(
+            f"{str(path)!r} is a hil log of format 1, recorded before the reference-aware "
+            "symbolic controller (its decisions lack the reference in force): it cannot be "
+            "judged and must be re-recorded"
+        )
+
+
 def load_run(path: str | Path) -> RunData:
     """Read a recorded run (see the module docstring for the rule on imperfect input).
 
@@ -501,10 +511,12 @@ def load_run(path: str | Path) -> RunData:
         BagFormatError: Not a readable bag (truncated beyond use, foreign storage, ...).
         NotAHilRunError: A valid log without hil's topics.
         FrameError: Poses not in the arena frame, or a stream in several frames.
+        OldLogFormatError: A log of hil format 1 (before the reference-aware controller).
     """
     with BagReader(path) as reader:
         reader.require_hil_run()
         info = reader.info
+        _require_current_format(path, info.custom)
         read = (*FIELDS, *RECORD_TOPICS)
         wanted = [t.name for t in info.topics if t.decodable and t.name in read]
         by_topic: dict[str, list[RawMessage]] = {name: [] for name in read}

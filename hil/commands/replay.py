@@ -2,7 +2,7 @@
 
 Arguments may be bags, folders of bags and shell globs (``hil replay logs/*``):
 what is not a bag (README.md, suite.json, a folder without bags) is skipped with
-a one-line note. Each log gets a readable report (decisions, tracking, margin,
+a one-line note. Each log gets a readable report (decisions, tracking, contract,
 stack; resim with ``--resim``); ``--json``, ``--jsonl`` and ``--junit`` give the
 same machine-readable. Exit status (:data:`EXIT_CODES`): 0 when no log regressed
 (warnings do not count), 1 on any regression, 2 when a log cannot be replayed
@@ -71,9 +71,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "the paper's tank figures); "
         "rel= relative tracking difference to the recording (0.05); "
         "surge_max=, sway_max=, yaw_max= largest error; "
-        "estimate=, command= re-run differences; position= resim (m); "
-        "settle= margin check skips this long after each decision "
-        "(s, default 1)",
+        "estimate=, command= re-run differences; position= resim (m)",
     )
     parser.add_argument(
         "--resim", action="store_true", help="also re-simulate each run (closed loop) and compare"

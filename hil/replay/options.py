@@ -33,9 +33,6 @@ class Tolerance:
         command: Allowed difference of a re-run's thruster commands (normalized, rad).
         resim_position_m: Allowed distance between the re-simulated and the
             recorded trajectory (m).
-        settle_s: The margin check skips this long after each decision (s): the
-            transient after a reference step is the paper's assumption (1), not
-            covered by the margin, which is measured after settling.
     """
 
     rms: tuple[float, float, float] = (math.inf, math.inf, math.inf)
@@ -44,7 +41,6 @@ class Tolerance:
     estimate: float = 1e-6
     command: float = 1e-4
     resim_position_m: float = 0.05
-    settle_s: float = 1.0
 
     @property
     def enforce_rms(self) -> bool:
@@ -57,8 +53,8 @@ class Tolerance:
 
         Keys: ``surge``, ``sway`` (m/s), ``yaw`` (deg/s) set enforced RMS
         thresholds (on that axis only); ``surge_max``, ``sway_max``, ``yaw_max`` thresholds on the
-        largest error; ``rel``, ``estimate``, ``command``, ``position`` and
-        ``settle`` the fields of the same meaning.
+        largest error; ``rel``, ``estimate``, ``command`` and ``position``
+        the fields of the same meaning.
 
         Raises:
             ValueError: An unknown key or a value that is not a number >= 0.
@@ -71,7 +67,6 @@ class Tolerance:
             "estimate": "estimate",
             "command": "command",
             "position": "resim_position_m",
-            "settle": "settle_s",
         }
         for part in filter(None, (p.strip() for p in text.split(","))):
             key, sep, raw = part.partition("=")

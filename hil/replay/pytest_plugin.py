@@ -4,8 +4,8 @@
 bag directory or a bare ``.mcap`` file), so a lab runs its own tank bags as a
 regression suite beside the unit tests. Each test replays its log with
 :func:`hil.replay.replayer.replay_log` and fails on a regression or when the log
-cannot be replayed, printing the readable report; warnings (the margin
-check) go to the test's report sections. Options:
+cannot be replayed, printing the readable report; warnings
+go to the test's report sections. Options:
 ``--hil-resim`` also re-simulates; ``--hil-tolerance K=V,...`` as ``hil replay``.
 
 Registered as the ``pytest11`` entry point ``hil``; without the entry point,

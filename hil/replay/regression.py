@@ -1,7 +1,7 @@
 """Results of a replay: checks and findings as frozen data, rendered as text, JSON and JUnit.
 
 A replay of one log produces a :class:`LogReport`: a list of :class:`Check` s
-(decisions, tracking, margin, stack, resim), each with a :class:`Status` and
+(decisions, tracking, contract, stack, resim), each with a :class:`Status` and
 the :class:`Finding` s behind it (time, what differs, both sides), and the
 :class:`Interval` s between its decisions, judged one by one. A FAIL in any check
 is a regression; WARN is something to act on that does not fail (the guarantee's
@@ -78,7 +78,7 @@ class Check:
     """One comparison of the replay with the recording or with a threshold.
 
     Attributes:
-        name: Short name ("decisions", "tracking", "margin", "stack", "resim").
+        name: Short name ("decisions", "tracking", "contract", "stack", "resim").
         status: Outcome.
         summary: One line.
         findings: The differences behind the outcome, in time order.
@@ -112,19 +112,28 @@ class Interval:
         state: Estimated state (x m, y m, psi rad) the decision was taken at.
         chosen_index: Input-grid index of the chosen input, -1 for none.
         chosen_input: The chosen (u m/s, v m/s, r rad/s).
-        successor_contained: Whether the estimated state one sampling time tau
-            after the decision lies in the abstraction's successor cells of the
-            decision cell under the chosen input; None when not judged (no input
-            chosen, no controller, the run ended before tau).
-        tube_contained: Whether every estimated position within tau of the decision
-            lies in the swept tube's cells; None when not judged.
+        successor_contained: Whether the estimate at the next decision (or at tau +
+            late when none) lies in the decision contract's successor cells, position
+            and heading; None when not judged (no input chosen, no controller, the
+            interval cut short before tau, the run ended first).
+        tube_contained: Whether every estimate sample of the interval (up to tau +
+            late) lies within the estimation bound of the tube cells; None when not judged.
+        value_decreased: Whether the value at the successor estimate, chosen input in
+            force, is below the decision's; None when not judged.
+        tube_distance_m: Farthest estimate sample from the tube cells (m).
+        successor_distance_m: Distance of the successor estimate to the successor
+            cells (m).
+        heading_distance_rad: Angle of the successor estimate to the successor
+            headings (rad).
         tracking_rms: Tracking-error RMS over the interval (surge m/s, sway m/s,
             yaw deg/s); None without samples.
         tracking_max: Largest |tracking error| over the interval (same units).
-        margin_exceeded: Axes on which the error left the synthesized margin after
-            settling, in the interval.
-        status: PASS, WARN (margin left, or a successor/tube not contained) or FAIL
-            (a check failed at a time in the interval).
+        envelope_exceeded: Axes on which |nu_hat - nu_ref| left the budget's envelope
+            of the decision's class plus the velocity estimate's tolerance.
+        envelope_excess: Largest excess over that bound per axis (surge m/s, sway m/s,
+            yaw deg/s; 0 within it); None when not judged.
+        status: PASS, or FAIL (the contract broken, or a check failed at a time in the
+            interval).
         notes: Why the interval is not PASS, one short line each.
     """
 
@@ -135,9 +144,14 @@ class Interval:
     chosen_input: tuple[float, float, float]
     successor_contained: bool | None = None
     tube_contained: bool | None = None
+    value_decreased: bool | None = None
+    tube_distance_m: float | None = None
+    successor_distance_m: float | None = None
+    heading_distance_rad: float | None = None
     tracking_rms: tuple[float, float, float] | None = None
     tracking_max: tuple[float, float, float] | None = None
-    margin_exceeded: tuple[str, ...] = ()
+    envelope_exceeded: tuple[str, ...] = ()
+    envelope_excess: tuple[float, float, float] | None = None
     status: Status = Status.PASS
     notes: tuple[str, ...] = ()
 
@@ -153,9 +167,14 @@ class Interval:
                 "chosen_input": self.chosen_input,
                 "successor_contained": self.successor_contained,
                 "tube_contained": self.tube_contained,
+                "value_decreased": self.value_decreased,
+                "tube_distance_m": self.tube_distance_m,
+                "successor_distance_m": self.successor_distance_m,
+                "heading_distance_rad": self.heading_distance_rad,
                 "tracking_rms": self.tracking_rms,
                 "tracking_max": self.tracking_max,
-                "margin_exceeded": list(self.margin_exceeded),
+                "envelope_exceeded": list(self.envelope_exceeded),
+                "envelope_excess": self.envelope_excess,
                 "verdict": self.status.value,
                 "notes": list(self.notes),
             }

@@ -10,17 +10,19 @@ Open loop (default), four checks, each in its own module:
 - ``tracking``: velocity-tracking error per axis (RMS, max) of the recorded
   estimates (odometry) against the recorded references: figures beside the
   paper's tank figures, FAIL only above thresholds ``--tolerance`` sets.
-- ``margin``: the guarantee's assumption, that the tracking error stayed within
-  the margin the controller was synthesized for; says where it did not (WARN).
+- ``contract``: every interval between decisions held to its decision's contract
+  (:mod:`hil.replay.intervals`): each estimate sample within the estimation bound of
+  the tube, the next decision's estimate in the successor cells with a smaller value,
+  |nu_hat - nu_ref| within the transient budget's envelope; FAIL naming the interval
+  and the size of each violation.
 - ``stack``: the full stack (observer, decisions, PID, allocation) re-run by
   :class:`hil.runtime.loop.Runtime` on the recorded sensor and obstacle streams
   through the ``log`` adapters; its estimates, decisions, references, thruster
   commands and tracking error must reproduce the recording (not judged, SKIP,
   for a run over ROS, whose per-tick sample arrival is not recorded).
 
-With ``ReplayOptions.intervals`` every interval between decisions is also judged
-(:mod:`hil.replay.intervals`): containment in the abstraction's successor cells and
-swept tube, tracking error, verdict.
+With ``ReplayOptions.intervals`` the judged intervals (sizes, tracking error, verdict)
+are kept in the report as well.
 
 Closed loop (``resim``): the recorded scenario, seed and start (from the suite
 manifest beside the log when there is one, else the first recorded pose) are
@@ -39,12 +41,12 @@ from hil.bag.run_data import load_run
 from hil.controllers.symbolic import SymbolicError
 from hil.replay.controllers import ScenarioCache, resolve_scenario
 from hil.replay.decisions import check_decisions
-from hil.replay.intervals import judge_intervals
+from hil.replay.intervals import check_contract, judge_intervals
 from hil.replay.options import ReplayOptions
 from hil.replay.regression import Interval, LogReport
 from hil.replay.resim import check_resim
 from hil.replay.stack import check_stack
-from hil.replay.tracking_checks import check_margin, check_tracking
+from hil.replay.tracking_checks import check_tracking
 from hil.scenarios import ScenarioError
 
 
@@ -76,21 +78,18 @@ def replay_log(
         step("decisions")
         checks = [check_decisions(run, controllers)]
         step("tracking")
-        checks += [
-            check_tracking(run, options.tolerance),
-            check_margin(run, scenario, options.tolerance.settle_s),
-        ]
+        checks.append(check_tracking(run, options.tolerance))
         if options.stack:
             step("stack")
             checks.append(check_stack(run, controllers, options))
         if options.resim:
             step("resim")
             checks.append(check_resim(run, options.tolerance))
+        step("contract")
+        judged = judge_intervals(run, controllers, scenario, checks)
+        checks.append(check_contract(judged))
         if options.intervals:
-            step("intervals")
-            intervals = judge_intervals(
-                run, controllers, scenario, checks, options.tolerance.settle_s
-            )
+            intervals = judged
     except (ReplayError, SymbolicError, ScenarioError, ValueError, OSError) as err:
         message = str(err).splitlines()[0] if str(err) else type(err).__name__
         return LogReport(str(path), error=message, wall_s=time.perf_counter() - wall)

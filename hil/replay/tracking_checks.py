@@ -1,13 +1,14 @@
-"""The tracking and margin checks, on the one tracking error of :mod:`hil.core.tracking`.
+"""The tracking check, on the one tracking error of :mod:`hil.core.tracking`.
 
 - ``tracking``: velocity-tracking error per axis (RMS, max) of the recorded
   estimates (odometry) against the recorded references. Judged only against the
   thresholds ``--tolerance`` sets (FAIL above them); otherwise the figures are
   reported beside the paper's tank figures, for comparison, and the check passes:
   the tank figures are no regression threshold (another vessel, another water).
-- ``margin``: the guarantee's assumption, that the tracking error stayed within
-  the margin the controller was synthesized for; says where it did not (WARN: the
-  guarantee does not cover those spans, something to act on).
+
+The guarantee's velocity premise (|nu - nu_ref| within the transient budget, over the
+whole interval) is judged per interval by the ``contract`` check
+(:mod:`hil.replay.intervals`).
 
 Errors are computed in SI and shown (messages, metrics) with yaw in deg/s.
 """
@@ -23,9 +24,8 @@ from numpy.typing import NDArray
 from hil.bag.run_data import RunData
 from hil.core.tracking import AXES, DISPLAY_UNITS, TrackingSeries, for_display
 from hil.replay.options import Tolerance
-from hil.replay.regression import Check, Finding, Status, time_s
+from hil.replay.regression import Check, Finding, Status
 from hil.runs.summary import PAPER_TRACKING_ERROR
-from hil.scenarios import Scenario
 
 FloatArray = NDArray[np.float64]
 NS_PER_S = 1_000_000_000
@@ -110,78 +110,6 @@ def check_tracking(run: RunData, tolerance: Tolerance) -> Check:
     axes = ", ".join(sorted({_AXES[k] for k in [*over, *over_peak]}, key=_AXES.index))
     return Check(
         "tracking", Status.FAIL, f"{text}; above threshold in {axes}", tuple(findings), metrics
-    )
-
-
-def _spans(mask: NDArray[np.bool_]) -> list[tuple[int, int]]:
-    """Return [start, stop) index spans where `mask` is True."""
-    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-    return list(
-        zip(np.flatnonzero(edges == 1).tolist(), np.flatnonzero(edges == -1).tolist(), strict=True)
-    )
-
-
-def check_margin(run: RunData, scenario: Scenario, settle_s: float = 1.0) -> Check:
-    """Re-check the guarantee's assumption: |nu - nu_ref| within the scenario's margin.
-
-    Samples less than `settle_s` after a decision are not checked (the step
-    transient; see :class:`Tolerance`).
-    """
-    series = run.tracking_error()
-    if not len(series.t_ns):
-        return Check("margin", Status.SKIP, "no velocity references with estimates")
-    margin_si = scenario.margin.as_array()
-    margin = for_display(margin_si)
-    decided = np.array([d.t_ns for d in run.decisions], dtype=np.int64)
-    last = np.searchsorted(decided, series.t_ns, side="right") - 1
-    since_ns = series.t_ns - np.where(last >= 0, decided[np.maximum(last, 0)], 0)
-    settled = since_ns >= round(settle_s * NS_PER_S)
-    over = (np.abs(series.error) > margin_si) & settled[:, None]
-    shown = for_display(np.abs(series.error))
-    findings: list[Finding] = []
-    for k in range(3):
-        for start, stop in _spans(over[:, k])[:3]:
-            worst = float(shown[start:stop, k].max())
-            findings.append(
-                Finding(
-                    f"{_AXES[k]} error up to {worst:.4f} {_UNITS[k]} > margin {margin[k]:.4f} "
-                    f"until {time_s(int(series.t_ns[stop - 1]))}",
-                    int(series.t_ns[start]),
-                    {
-                        "axis": _AXES[k],
-                        "max_abs": worst,
-                        "margin": float(margin[k]),
-                        "until_ns": int(series.t_ns[stop - 1]),
-                    },
-                )
-            )
-    findings.sort(key=lambda f: f.t_ns or 0)
-    share = over.sum(axis=0) / max(1, int(settled.sum()))
-    metrics = {
-        "margin": [float(v) for v in margin],
-        "settle_s": settle_s,
-        "samples_checked": int(settled.sum()),
-        "share_outside": [float(v) for v in share],
-    }
-    if not over.any():
-        return Check(
-            "margin",
-            Status.PASS,
-            f"tracking error within the margin {_axes_text(margin)} "
-            f"from {settle_s:g} s after each decision on",
-            (),
-            metrics,
-        )
-    note = " (zero margin: the paper's assumption of perfect tracking)" if not margin.any() else ""
-    outside = ", ".join(f"{a} {100 * s:.0f}%" for a, s in zip(_AXES, share, strict=True))
-    return Check(
-        "margin",
-        Status.WARN,
-        f"tracking error outside the synthesized margin{note} on {outside} of the "
-        f"samples {settle_s:g} s or more after a decision; the guarantee does not "
-        "cover those spans",
-        tuple(findings),
-        metrics,
     )
 
 

@@ -149,7 +149,8 @@ def build_runtime(
     solve = solver if solver is not None else LayoutSolver(scenario, synthesizer)
     resynthesizer: Resynthesizer[SymbolicController] = Resynthesizer(solve, mode)
     return Runtime(world, EkfObserver(start_nu=start_nu), low_level_for(loop.loop_hz),
-                   resynthesizer, select, log, loop, scenario_hash(scenario))
+                   resynthesizer, select, log, loop, scenario_hash(scenario),
+                   estimation_position_m=scenario.transient.estimation_position_m)
 
 
 def synthesizer_for(scenario: Scenario, cache_dir: Path | None = None) -> Synthesizer:

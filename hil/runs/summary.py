@@ -85,6 +85,14 @@ class RunSummary:
         log: Where the run's log is (None when not recorded).
         aborted: Whether the run stopped because it could not go on (synthesis
             failed, no safe input at the start); `end_reason` says why.
+        tube_exits: Runtime monitor: estimates farther than the estimation bound from
+            the decision's tube cells (each answered with a first decision).
+        successor_misses: Runtime monitor: decisions whose estimate was outside the
+            previous decision's successor cells.
+        value_not_decreasing: Runtime monitor: decisions whose value was not below the
+            previous decision's.
+        worst_tube_exit_m: Largest of those tube distances (m).
+        worst_successor_miss_m: Largest distance to the successor cells (m).
     """
 
     scenario: str
@@ -109,6 +117,11 @@ class RunSummary:
     overruns: int
     log: str | None
     aborted: bool = False
+    tube_exits: int = 0
+    successor_misses: int = 0
+    value_not_decreasing: int = 0
+    worst_tube_exit_m: float = 0.0
+    worst_successor_miss_m: float = 0.0
 
     def to_json(self) -> str:
         """Return the summary as one line of JSON (NaN and inf as null)."""
@@ -159,6 +172,12 @@ class RunSummary:
         ):
             table.add_row(f"tracking RMS / max, {label}", f"{rms:.5f} / {peak:.4f}", f"{paper}")
         table.add_row("decisions outside winning set", str(self.not_winning_decisions), "-")
+        table.add_row(
+            "monitor: tube exits / successor misses / value not decreasing",
+            f"{self.tube_exits} ({self.worst_tube_exit_m:.3f} m) / {self.successor_misses} "
+            f"({self.worst_successor_miss_m:.3f} m) / {self.value_not_decreasing}",
+            "-",
+        )
         table.add_row(
             "rejected samples / pose losses", f"{self.rejected_samples} / {self.pose_losses}", "-"
         )
@@ -231,6 +250,11 @@ def summarize_run(
         overruns=stats.overruns,
         log=log,
         aborted=stats.aborted,
+        tube_exits=stats.tube_exits,
+        successor_misses=stats.successor_misses,
+        value_not_decreasing=stats.value_not_decreasing,
+        worst_tube_exit_m=stats.worst_tube_exit_m,
+        worst_successor_miss_m=stats.worst_successor_miss_m,
     )
 
 

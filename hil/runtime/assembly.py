@@ -16,6 +16,7 @@ from hil.controllers.low_level import LowLevelController, LowLevelParams
 from hil.controllers.observer import Ekf, ObserverStatus
 from hil.controllers.symbolic import (
     Controller,
+    DecisionContract,
     NoWinningSetError,
     SymbolicProblem,
     Synthesizer,
@@ -143,6 +144,15 @@ class SymbolicAdapter:
         if cell is None:
             return np.zeros(0, dtype=np.int64)
         return self.controller.safe_input_indices_at(cell, reference, first).astype(np.int64)
+
+    def contract(
+        self, state: FloatArray, chosen: int, reference: int, first: bool
+    ) -> DecisionContract | None:
+        """Return the contract of choosing `chosen` at `state`; None outside the grid."""
+        cell = self.controller.grid.cell_of(state)
+        if cell is None:
+            return None
+        return DecisionContract.of(self.controller, cell, chosen, reference, first)
 
 
 def select_index(safe_inputs: FloatArray, previous: FloatArray) -> int:

@@ -36,6 +36,19 @@ class EventCode(enum.Enum):
     """The run's time limit passed before docking."""
     STOPPED = "stopped"
     """The run was stopped (signal, fatal fault)."""
+    TUBE_EXIT = "tube_exit"
+    """The estimate left the current decision's tube cells by more than the estimation
+    bound (ERROR; the text gives the distance in m and the decision's time): the
+    guarantee no longer covers the interval, so a new decision is taken at once as a
+    first decision (reference in force: the input nearest the estimated velocity); it
+    finds a safe input or stops the vessel as NOT_WINNING does."""
+    SUCCESSOR_MISS = "successor_miss"
+    """At the next decision the estimate was outside the previous decision's successor
+    cells (WARN; distance in m and heading angle in rad): the decision is taken from the
+    cell the vessel is in, as always."""
+    VALUE_NOT_DECREASING = "value_not_decreasing"
+    """At the next decision the value (previous input in force) was not below the
+    previous decision's (WARN; both values): the decision is taken as always."""
     ABORTED = "aborted"
     """The run cannot go on (no controller for the layout, a state no safe input leaves
     from): thrusters to zero and the run ends at once, the text saying why."""

@@ -3,7 +3,9 @@
 Each tick (20 Hz by default) the loop drains the pose and IMU feeds into the
 observer, watches the obstacle feed and the re-synthesis worker, takes a
 symbolic decision every `decision_period_s`, runs the velocity controller and
-the allocator, sends the thruster command and records all of it. Faults have
+the allocator, sends the thruster command and records all of it. The runtime
+monitor (:mod:`hil.runtime.monitor`) holds every tick's estimate to the contract of
+the decision in force; a tube exit is answered with a first decision at once. Faults have
 one defined behaviour each (:class:`hil.runtime.events.EventCode`). Its settings
 are :class:`hil.runtime.settings.LoopConfig`, what it counts
 :class:`hil.runtime.stats.RunStats`.
@@ -31,6 +33,7 @@ from hil.core.records import Decision, EventLevel
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
 from hil.core.transient import START_PERIODS
 from hil.runtime.events import EventCode
+from hil.runtime.monitor import Monitor, Violation
 from hil.runtime.resynthesis import Resynthesizer
 from hil.runtime.settings import NS_PER_S, LoopConfig
 from hil.runtime.stack import LowLevel, Observer, RunLog, SymbolicController
@@ -97,6 +100,9 @@ class Runtime:
         log: Where everything is recorded.
         config: Timing and thresholds.
         scenario_hash: Identifies the scenario in every decision record.
+        estimation_position_m: The transient budget's bound on the estimate's position
+            error (m), the tolerance of the runtime monitor's tube judge
+            (:mod:`hil.runtime.monitor`).
     """
 
     def __init__(
@@ -109,6 +115,7 @@ class Runtime:
         log: RunLog,
         config: LoopConfig | None = None,
         scenario_hash: str = "",
+        estimation_position_m: float = 0.0,
     ) -> None:
         self.world = world
         self.observer = observer
@@ -119,6 +126,7 @@ class Runtime:
         self.config = config or LoopConfig()
         self.scenario_hash = scenario_hash
         self.stats = RunStats()
+        self.monitor = Monitor(estimation_position_m, 1.0 / self.config.loop_hz)
         self.mode = Mode.WAITING
         self.controller: SymbolicController | None = None
         self.controller_version = 0
@@ -192,11 +200,25 @@ class Runtime:
         if self._estimating_since_ns is None:
             self._estimating_since_ns = t_ns
         if t_ns >= self._next_decision_ns and self._observer_settled(t_ns):
+            for violation in self.monitor.at_decision(t_ns, eta_hat):
+                self._violation(t_ns, violation)
             self._decide(t_ns, eta_hat, nu_hat)
             self._next_decision_ns = t_ns + round(self.config.decision_period_s * NS_PER_S)
             if self._abort is not None:
                 self._stop(t_ns, EventCode.ABORTED, self._abort)
                 return
+        else:
+            exit_ = self.monitor.tick(t_ns, eta_hat)
+            if exit_ is not None:
+                # The guarantee no longer covers this interval: decide afresh, as a first
+                # decision from the estimated velocity, now.
+                self._violation(t_ns, exit_)
+                self._reference_index = None
+                self._decide(t_ns, eta_hat, nu_hat)
+                self._next_decision_ns = t_ns + round(self.config.decision_period_s * NS_PER_S)
+                if self._abort is not None:
+                    self._stop(t_ns, EventCode.ABORTED, self._abort)
+                    return
         if self.mode is Mode.WAITING:
             self._send(ThrusterCommand.zero(t_ns))
             return
@@ -213,6 +235,19 @@ class Runtime:
 
     def _event(self, t_ns: int, level: EventLevel, code: EventCode, text: str) -> None:
         self.log.event(t_ns, level, code.value, text)
+
+    def _violation(self, t_ns: int, v: Violation) -> None:
+        """Count and record one broken promise of a decision (runtime monitor)."""
+        s = self.stats
+        if v.code is EventCode.TUBE_EXIT:
+            s.tube_exits += 1
+            s.worst_tube_exit_m = max(s.worst_tube_exit_m, v.size)
+        elif v.code is EventCode.SUCCESSOR_MISS:
+            s.successor_misses += 1
+            s.worst_successor_miss_m = max(s.worst_successor_miss_m, v.size)
+        else:
+            s.value_not_decreasing += 1
+        self._event(t_ns, v.level, v.code, v.text)
 
     def _ingest(self, t_ns: int) -> None:
         # Fuse both feeds in measurement-time order: when the loop lags, draining all
@@ -371,11 +406,13 @@ class Runtime:
             )
             self.mode = Mode.HOLD
             self._reference_index = None
+            self.monitor.clear()
             self.low_level.reset()
         self._send(ThrusterCommand.zero(t_ns))
 
     def _decide(self, t_ns: int, eta_hat: FloatArray, nu_hat: FloatArray) -> None:
         controller = self.controller
+        self.monitor.clear()
         if controller is None:
             self._reference_index = None
             if self.mode is not Mode.WAITING:
@@ -439,6 +476,9 @@ class Runtime:
         self._reference_index = chosen_index if chosen_index >= 0 else None
         if chosen_index >= 0:
             self._first_left = max(self._first_left - 1, 0)
+            self.monitor.start(
+                t_ns, controller.contract(eta_hat, chosen_index, reference, first)
+            )
         self.stats.decisions += 1
         self.log.decision(
             Decision.from_arrays(

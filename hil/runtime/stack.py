@@ -14,6 +14,7 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from hil.controllers.symbolic import DecisionContract
 from hil.core.records import Decision, EventLevel
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
 
@@ -51,6 +52,15 @@ class SymbolicController(Protocol):
 
     def safe_input_indices(self, state: FloatArray, reference: int, first: bool) -> IntArray:
         """Return the input-grid indices of every safe input at `state`, shape (k,)."""
+
+    def contract(
+        self, state: FloatArray, chosen: int, reference: int, first: bool
+    ) -> DecisionContract | None:
+        """Return what choosing input `chosen` at `state` promises (tube, successor, value).
+
+        None when `state` is outside the grid. Built once per decision; the runtime
+        monitor judges every tick's estimate with it.
+        """
 
     @property
     def inputs(self) -> FloatArray:

@@ -18,7 +18,9 @@ class RunStats:
 
     Series are time-major lists, one row per tick under control: `t_ns`,
     `eta_hat` (3,), `nu_hat` (3,), `nu_ref` (3,); `tick_wall_ns` holds the clock
-    time at which every tick started (for the period jitter).
+    time at which every tick started (for the period jitter). `tube_exits`,
+    `successor_misses` and `value_not_decreasing` count the runtime monitor's
+    violations (:mod:`hil.runtime.monitor`), the worst sizes in metres beside them.
     """
 
     start_ns: int = 0
@@ -33,6 +35,11 @@ class RunStats:
     pose_losses: int = 0
     thruster_failures: int = 0
     not_winning_decisions: int = 0
+    tube_exits: int = 0
+    successor_misses: int = 0
+    value_not_decreasing: int = 0
+    worst_tube_exit_m: float = 0.0
+    worst_successor_miss_m: float = 0.0
     target_reached_ns: int | None = None
     docked_ns: int | None = None
     end_reason: str = ""

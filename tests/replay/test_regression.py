@@ -141,13 +141,18 @@ def test_jsonl_lines_are_the_intervals_then_the_log() -> None:
         (1.0, 2.0, 0.5),
         3,
         (0.1, 0.0, 0.0),
-        True,
-        False,
-        (0.01, 0.02, 1.5),
-        (0.05, 0.06, 4.0),
-        ("sway",),
-        Status.WARN,
-        ("left the tube",),
+        successor_contained=True,
+        tube_contained=False,
+        value_decreased=True,
+        tube_distance_m=0.031,
+        successor_distance_m=0.0,
+        heading_distance_rad=0.0,
+        tracking_rms=(0.01, 0.02, 1.5),
+        tracking_max=(0.05, 0.06, 4.0),
+        envelope_exceeded=("sway",),
+        envelope_excess=(0.0, 0.004, 0.0),
+        status=Status.WARN,
+        notes=("left the tube",),
     )
     report = dataclasses.replace(_good(), intervals=(interval,))
     first, log = (json.loads(line) for line in jsonl_lines(report))
@@ -156,7 +161,10 @@ def test_jsonl_lines_are_the_intervals_then_the_log() -> None:
     assert first["t_s"] == 0.05
     assert first["successor_contained"] is True
     assert first["tube_contained"] is False
-    assert first["margin_exceeded"] == ["sway"]
+    assert first["envelope_exceeded"] == ["sway"]
+    assert first["envelope_excess"] == [0.0, 0.004, 0.0]
+    assert first["tube_distance_m"] == 0.031
+    assert first["value_decreased"] is True
     assert first["verdict"] == "warn"
     assert log == {
         "type": "log",

@@ -14,8 +14,7 @@ from hil.bag.run_data import RunData, Series
 from hil.core.records import Decision
 from hil.replay.options import Tolerance
 from hil.replay.regression import Status
-from hil.replay.tracking_checks import check_margin, check_tracking
-from hil.scenarios import TrackingMargin, load_scenario
+from hil.replay.tracking_checks import check_tracking
 
 
 def _synthetic_run(errors: dict[int, float]) -> RunData:
@@ -41,18 +40,6 @@ def _synthetic_run(errors: dict[int, float]) -> RunData:
         layouts=(),
         events=(),
     )
-
-
-def test_margin_check_says_where_the_error_left_the_margin_after_settling() -> None:
-    scenario = load_scenario("coarse").with_margin(TrackingMargin(0.01, 0.02, 0.03))
-    # 0.05 m/s at 0.5 s: inside the settling second, not checked; at 3.5 s: outside.
-    check = check_margin(_synthetic_run({10: 0.05, 70: 0.05}), scenario, settle_s=1.0)
-    assert check.status is Status.WARN
-    (finding,) = check.findings
-    assert finding.t_ns == 3_500_000_000
-    assert finding.data["axis"] == "surge"
-    assert check_margin(_synthetic_run({10: 0.05}), scenario).status is Status.PASS
-    assert check_margin(_synthetic_run({10: 0.05}), scenario, settle_s=0.0).status is Status.WARN
 
 
 def test_tracking_metrics_show_yaw_in_degrees_per_second() -> None:
