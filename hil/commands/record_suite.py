@@ -70,18 +70,18 @@ def suite() -> tuple[SuiteRun, ...]:
         ),
         SuiteRun(
             "coarse-low-seed1",
-            SimRunSpec("coarse", 1, (3.5, -2.25, math.radians(120.0)), loop=loop),
+            SimRunSpec("coarse", 1, (0.4, -1.3, math.radians(120.0)), loop=loop),
             "start low on the right, heading up-left",
         ),
         SuiteRun(
             "coarse-high-seed2",
-            SimRunSpec("coarse", 2, (3.75, 1.5, math.radians(180.0)), loop=loop),
+            SimRunSpec("coarse", 2, (0.4, 1.5, math.radians(180.0)), loop=loop),
             "start high on the right, heading left",
         ),
         SuiteRun(
             "coarse-moving-o2-seed3",
             SimRunSpec(
-                "coarse", 3, None, loop=loop, motions=(ObstacleMotion(1, (0.0, 0.05), 4.0, 8.0),)
+                "coarse", 3, None, loop=loop, motions=(ObstacleMotion(0, (0.0, 0.05), 4.0, 8.0),)
             ),
             "O2 moves up 0.2 m between 4 s and 8 s: re-synthesis on new layouts",
         ),

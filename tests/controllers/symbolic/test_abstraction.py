@@ -53,12 +53,12 @@ def test_displacement_matches_numerical_integration() -> None:
 
 @pytest.fixture(scope="module")
 def zero_tables() -> Tables:
-    return build_tables(GRID, INPUTS, TAU, TransientBudget.zero(TAU), late_s=0.3)
+    return build_tables(GRID, INPUTS, TAU, TransientBudget.zero(TAU), late_s=0.2)
 
 
 @pytest.fixture(scope="module")
 def budget_tables() -> Tables:
-    return build_tables(GRID, INPUTS, TAU, tiny.budget(), late_s=0.3)
+    return build_tables(GRID, INPUTS, TAU, tiny.budget(), late_s=0.2)
 
 
 def _check_contains(
@@ -191,7 +191,7 @@ def _assert_contains(big: Tables, cb: int, small: Tables, cs: int, tubes: bool =
 
 
 def test_a_larger_budget_only_grows_the_boxes(zero_tables: Tables, budget_tables: Tables) -> None:
-    larger = build_tables(GRID, INPUTS, TAU, tiny.budget(2.0), late_s=0.3)
+    larger = build_tables(GRID, INPUTS, TAU, tiny.budget(2.0), late_s=0.2)
     for small, big in ((zero_tables, budget_tables), (budget_tables, larger)):
         for c in range(N_CLASSES):
             _assert_contains(big, c, small, c)
@@ -214,13 +214,8 @@ def test_classes_are_ordered(budget_tables: Tables) -> None:
 
 
 def test_the_estimation_bound_alone_grows_the_boxes(zero_tables: Tables) -> None:
-    estimate_only = TransientBudget(
-        bin_s=0.25,
-        envelopes=np.zeros((2, 8, 3)),
-        estimation_position_m=0.02,
-        estimation_heading_rad=0.02,
-    )
-    t = build_tables(GRID, INPUTS, TAU, estimate_only, late_s=0.3)
+    estimate_only = tiny.envelope_budget(np.zeros((3, 9, 3)), 0.02, 0.02)
+    t = build_tables(GRID, INPUTS, TAU, estimate_only, late_s=0.2)
     for c in range(N_CLASSES):
         _assert_contains(t, c, zero_tables, c)
     assert np.any(t.heading[..., 1] > zero_tables.heading[..., 1])
@@ -269,13 +264,13 @@ def test_heading_offsets_wrap_and_round() -> None:
     t8 = build_tables(grid8, np.array([[0.0, 0.0, 3.3], [0.0, 0.0, -3.3]]), TAU, zero)
     np.testing.assert_array_equal(t8.heading[0], [[8, 9], [-9, -8]])
     # With an estimate error the offsets widen by at most 2 eps / cell width each way.
-    eps = TransientBudget(0.25, np.zeros((2, 8, 3)), 0.0, 0.01)
+    eps = tiny.envelope_budget(np.zeros((3, 9, 3)), 0.0, 0.01)
     t12e = build_tables(grid12, exact, TAU, eps)
     np.testing.assert_array_equal(t12e.heading[:, 0], [[0, 2]] * 3)
 
 
 def test_late_ticks_grow_the_successor() -> None:
-    zero = TransientBudget.zero(TAU)
+    zero = TransientBudget.zero(TAU, n_bins=10)  # 2.5 s: covers the half-second late
     on_time = build_tables(GRID, INPUTS, TAU, zero, late_s=0.0)
     late = build_tables(GRID, INPUTS, TAU, zero, late_s=0.5)
     for c in range(N_CLASSES):

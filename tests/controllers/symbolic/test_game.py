@@ -26,6 +26,7 @@ from hil.controllers.symbolic.lattice import InputLattice
 from hil.controllers.symbolic.reference import dense_fixed_point
 from hil.core.shapes import Polygon, Rect, shapes_overlap
 from hil.core.transient import TransientBudget
+from tests.controllers.symbolic import tiny
 
 FloatArray = NDArray[np.float64]
 
@@ -36,17 +37,7 @@ INFLATION = 0.2
 
 
 def _budget() -> TransientBudget:
-    env = np.zeros((2, 8, 3))
-    env[0] = [0.004, 0.004, 0.01]
-    env[1, :3] = [0.03, 0.03, 0.06]
-    env[1, 3:] = [0.006, 0.006, 0.015]
-    return TransientBudget(
-        bin_s=0.25,
-        envelopes=env,
-        estimation_position_m=0.004,
-        estimation_heading_rad=0.004,
-        source="test",
-    )
+    return tiny.budget()
 
 
 @pytest.fixture(scope="module")
@@ -162,7 +153,7 @@ def test_listed_inputs_are_safe_when_flown(
             continue
         lo, hi = g.cell_bounds(*cell)
         for u in controller.safe_input_indices_at(cell, p, first):
-            cls = 1 if (first or int(u) != p) else 0
+            cls = 2 if first else (0 if int(u) == p else 1)
             start = rng.uniform(lo, hi)
             start[:2] += rng.uniform(-eps, eps, size=2) / math.sqrt(2.0)
             start[2] += rng.uniform(-eps_psi, eps_psi)
