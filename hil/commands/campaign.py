@@ -95,6 +95,7 @@ def run(args: argparse.Namespace) -> int:
     from hil.runs.campaign import (
         PAPER_TANK_MINUTES,
         CampaignStats,
+        StartRegion,
         campaign_specs,
         draw_starts,
         draw_velocities,
@@ -115,7 +116,9 @@ def run(args: argparse.Namespace) -> int:
         solver = LayoutSolver(scenario, synthesizer_for(scenario))
         controller = solver(layout_from_scenario(scenario)).controller
         velocities = draw_velocities(scenario, args.n, args.moving, args.seed)
-        starts, discarded = draw_starts(controller, args.n, args.seed, velocities=velocities)
+        starts, discarded = draw_starts(
+            controller, args.n, args.seed, StartRegion.of(scenario), velocities
+        )
     except (ScenarioError, SymbolicError, ValueError) as err:
         print(f"hil campaign: {err}", file=sys.stderr)
         return 2

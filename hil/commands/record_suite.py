@@ -55,7 +55,8 @@ class SuiteRun:
 def suite() -> tuple[SuiteRun, ...]:
     """Return the runs of ``logs/``.
 
-    Mostly the coarse grid, which keeps CI short; two runs of the paper scenario.
+    Mostly the coarse scenario (the docking end of the arena), which keeps CI short; two
+    runs of the paper scenario.
     """
     from hil.adapters.sim import ObstacleMotion, ThrusterOutage
     from hil.runs.sim_run import SimRunSpec
@@ -70,13 +71,14 @@ def suite() -> tuple[SuiteRun, ...]:
         ),
         SuiteRun(
             "coarse-low-seed1",
-            SimRunSpec("coarse", 1, (0.4, -1.3, math.radians(120.0)), loop=loop),
+            SimRunSpec("coarse", 1, (0.25, -1.2, math.radians(120.0)), loop=loop),
             "start low on the right, heading up-left",
         ),
         SuiteRun(
             "coarse-high-seed2",
-            SimRunSpec("coarse", 2, (0.4, 1.5, math.radians(180.0)), loop=loop),
-            "start high on the right, heading left",
+            SimRunSpec("coarse", 2, (0.0, -1.0, math.radians(180.0)), loop=loop),
+            "start on the right below O2's end, heading left (the arena above is too narrow "
+            "to turn in)",
         ),
         SuiteRun(
             "coarse-moving-o2-seed3",

@@ -126,6 +126,22 @@ def _failed_times(checks: Sequence[Check]) -> list[int]:
     )
 
 
+INTERRUPTIONS = frozenset(
+    {"pose_lost", "thruster_failure", "no_controller", "not_winning", "stopped", "aborted",
+     "timeout"}
+)
+"""Event codes after which an interval no longer runs as its decision assumed (a hold,
+thrust not delivered, a stop): it is judged up to the event, its end is not."""
+
+
+def _interruption(run: RunData, start_ns: int, stop_ns: int) -> tuple[int, str] | None:
+    """Return the first interrupting event (time, code) in [start_ns, stop_ns), if any."""
+    for event in run.events:
+        if start_ns <= event.t_ns < stop_ns and event.code in INTERRUPTIONS:
+            return event.t_ns, event.code
+    return None
+
+
 def judge_intervals(
     run: RunData,
     controllers: ControllerCache,
@@ -161,9 +177,14 @@ def judge_intervals(
         tube_m = succ_m = heading_rad = None
         exceeded: tuple[str, ...] = ()
         excess: tuple[float, float, float] | None = None
+        interrupted = _interruption(run, d.t_ns, end)
+        if interrupted is not None:
+            notes.append(f"interrupted by {interrupted[1]} at {time_s(interrupted[0])}")
         if contract is not None:
             horizon_ns = round((contract.tau_s + contract.late_s) * NS_PER_S)
             stop = min(end, d.t_ns + horizon_ns)
+            if interrupted is not None:
+                stop = min(stop, interrupted[0])
             t, poses, nu = _estimates_in(run, d.t_ns, stop)
             if len(t):
                 dist = contract.tube_distance_m(poses)
@@ -192,7 +213,9 @@ def judge_intervals(
                         )
                     )
             tau_ns = round(contract.tau_s * NS_PER_S)
-            cut_short = not last and end < d.t_ns + tau_ns - period // 2
+            cut_short = (not last and end < d.t_ns + tau_ns - period // 2) or (
+                interrupted is not None
+            )
             when = d.t_ns + horizon_ns if last else end
             after = None if cut_short else _estimate_at(run, when, period // 2 + 1)
             if after is not None:

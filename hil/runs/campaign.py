@@ -39,11 +39,19 @@ Velocity = tuple[float, float, float]
 class StartRegion:
     """Where random starts are drawn: a box in (x, y) and any heading.
 
-    The default is the paper's: right of O1 (x > 2.75 m), clear of the walls.
+    The default is the paper's: right of O1 (x > 2.75 m), clear of the walls;
+    :meth:`of` gives the same kind of box for any scenario.
     """
 
     x_m: tuple[float, float] = (3.0, 4.0)
     y_m: tuple[float, float] = (-2.4, 2.4)
+
+    @staticmethod
+    def of(scenario: Scenario) -> StartRegion:
+        """Return the box 0.5 to 1.5 m left of the right wall, 0.6 m clear of the others."""
+        x1 = scenario.x_range_m[1]
+        y0, y1 = scenario.y_range_m
+        return StartRegion((x1 - 1.5, x1 - 0.5), (y0 + 0.6, y1 - 0.6))
 
 
 def draw_starts(controller: Controller, n: int, seed: int,

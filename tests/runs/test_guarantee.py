@@ -65,7 +65,7 @@ def test_an_obstacle_sliding_onto_a_parked_hull_is_measured() -> None:
     t = np.arange(0.0, 10.0, 0.01)
     eta = np.zeros((len(t), 3))  # parked at the origin, bow along +x: hull [-0.495, 0.495]
     # O2 slides right at 0.1 m/s: after 10 s it spans x [-0.25, 0.25], y [0, 3].
-    motion = ObstacleMotion(1, (0.1, 0.0), 0.0, 10.0)
+    motion = ObstacleMotion(0, (0.1, 0.0), 0.0, 10.0)
     judged = judge_run(scenario, [], {}, t, eta, motions=[motion])
     assert judged.hull_contacts == 1
     assert judged.inflated_obstacle == 1

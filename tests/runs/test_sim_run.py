@@ -104,7 +104,7 @@ def test_thruster_link_failure_is_logged_and_the_run_goes_on(cache_dir: Path) ->
 def test_moving_obstacle_triggers_resynthesis_and_stays_clear(cache_dir: Path) -> None:
     log = MemoryLog()
     # O2 (upper wall) slides 0.3 m right over 6 s while the vessel approaches.
-    motion = ObstacleMotion(index=1, velocity_mps=(0.05, 0.0), start_s=4.0, stop_s=10.0)
+    motion = ObstacleMotion(index=0, velocity_mps=(0.05, 0.0), start_s=4.0, stop_s=10.0)
     summary = run_in_sim(_spec(cache_dir, seed=5, motions=(motion,)), log=log)
     assert summary.resyntheses >= 6
     assert len(log.layouts) >= 6
@@ -115,7 +115,7 @@ def test_moving_obstacle_triggers_resynthesis_and_stays_clear(cache_dir: Path) -
 def test_layout_without_solution_stops_the_vessel(cache_dir: Path) -> None:
     log = MemoryLog()
     # O2 slides down onto the target's approach until no start is winning.
-    motion = ObstacleMotion(index=1, velocity_mps=(-0.5, -0.3), start_s=2.0, stop_s=6.0)
+    motion = ObstacleMotion(index=0, velocity_mps=(-0.5, -0.3), start_s=2.0, stop_s=6.0)
     summary = run_in_sim(
         _spec(
             cache_dir,

@@ -29,7 +29,7 @@ def exported(tmp_path_factory: pytest.TempPathFactory) -> Exported:
             scenario="coarse",
             seed=3,
             out_dir=bag,
-            motions=(ObstacleMotion(index=1, velocity_mps=(0.2, 0.0), start_s=1.0, stop_s=1.5),),
+            motions=(ObstacleMotion(index=0, velocity_mps=(0.2, 0.0), start_s=1.0, stop_s=1.5),),
             loop=LoopConfig(resynthesis_period_s=None, max_duration_s=12.0),
         )
     )
