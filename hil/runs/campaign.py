@@ -209,6 +209,9 @@ class CampaignStats:
         tracking_rms: Mean over runs of the per-axis RMS tracking error
             (m/s, m/s, deg/s).
         wall_s_mean: Mean wall time per run (s).
+        lost_at_start: Runs whose first decision found no safe input (the start the
+            campaign drew was winning, but the vessel drifted while the observer settled
+            before the first decision); the guarantee speaks of the others only.
     """
 
     runs: int
@@ -218,6 +221,12 @@ class CampaignStats:
     min_clearance_m: float
     tracking_rms: tuple[float, float, float]
     wall_s_mean: float
+    lost_at_start: int = 0
+
+    @property
+    def winning_starts(self) -> int:
+        """Return the runs whose first decision found a safe input."""
+        return self.runs - self.lost_at_start
 
     @staticmethod
     def of(summaries: list[RunSummary]) -> CampaignStats:
@@ -235,4 +244,7 @@ class CampaignStats:
             tracking_rms=tuple(float(v) for v in np.nanmean(rms, axis=0))  # type: ignore[arg-type]
             if len(rms) else (math.nan, math.nan, math.nan),
             wall_s_mean=float(np.mean([s.wall_s for s in summaries])) if summaries else math.nan,
+            lost_at_start=sum(
+                s.aborted and s.decisions <= 1 and s.not_winning_decisions >= 1 for s in summaries
+            ),
         )
