@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -168,8 +169,10 @@ def test_listed_inputs_are_safe_when_flown(
             for pose in path[::10]:
                 hull = Polygon.rotated_rect((pose[0], pose[1]), HULL, pose[2])
                 v = hull.vertices()
-                assert v[:, 0].min() >= ARENA.x_min_m and v[:, 0].max() <= ARENA.x_max_m
-                assert v[:, 1].min() >= ARENA.y_min_m and v[:, 1].max() <= ARENA.y_max_m
+                assert v[:, 0].min() >= ARENA.x_min_m
+                assert v[:, 0].max() <= ARENA.x_max_m
+                assert v[:, 1].min() >= ARENA.y_min_m
+                assert v[:, 1].max() <= ARENA.y_max_m
                 assert not shapes_overlap(hull, OBSTACLE), (cell, p, int(u), pose)
                 assert not (
                     inflated.x_min_m < pose[0] < inflated.x_max_m
@@ -183,3 +186,23 @@ def test_listed_inputs_are_safe_when_flown(
                 # A first decision promises a winning end; later ones a smaller value.
                 assert value < (math.inf if first else v0), (cell, p, int(u), first, end, v0)
     assert flights > 300
+
+
+def test_save_and_load_round_trip(solved: tuple[Synthesizer, Controller], tmp_path: Path) -> None:
+    _, controller = solved
+    path = tmp_path / "controller.npz"
+    controller.save(path)
+    loaded = Controller.load(path)
+    assert loaded.stats == controller.stats
+    g = controller.grid
+    for p in range(controller.inputs.shape[0]):
+        np.testing.assert_array_equal(loaded.layer_values(p), controller.layer_values(p))
+    rng = np.random.default_rng(5)
+    for _ in range(200):
+        cell = (int(rng.integers(g.nx)), int(rng.integers(g.ny)), int(rng.integers(g.npsi)))
+        p = int(rng.integers(controller.inputs.shape[0]))
+        for first in (False, True):
+            np.testing.assert_array_equal(
+                loaded.safe_input_indices_at(cell, p, first),
+                controller.safe_input_indices_at(cell, p, first),
+            )

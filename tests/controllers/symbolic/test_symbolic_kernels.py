@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from hil.controllers.symbolic.kernels import pack_rows
-from hil.controllers.symbolic.sweep import _shifted, init_bits
+from hil.controllers.symbolic.sweep import _shifted, erode_free, init_layers, successor_run
 
 
 def _bits(words: np.ndarray) -> np.ndarray:
@@ -33,25 +33,63 @@ def test_shifted_reads_across_the_word_boundary() -> None:
         np.testing.assert_array_equal(got, both[s : s + 64], err_msg=f"s={s}")
 
 
-def test_init_bits_erodes_like_numpy() -> None:
+def test_erode_free_erodes_like_numpy() -> None:
     rng = np.random.default_rng(0)
-    nx, ny, npsi, px, pw = 3, 100, 4, 2, 2
-    goal = rng.random((nx, ny)) < 0.9
+    nx, ny, px, pw = 3, 100, 2, 2
     free = rng.random((nx, ny)) < 0.8
     nw = (ny + 63) // 64
     layers = 5
-    e = np.zeros((layers, nx + 2 * px, npsi + 2, nw + 2 * pw), dtype=np.uint64)
+    f0 = np.zeros((nx + 2 * px, nw + 2 * pw), dtype=np.uint64)
+    f0[px : px + nx, pw : pw + nw] = pack_rows(free)
     f = np.zeros((layers, nx + 2 * px, nw + 2 * pw), dtype=np.uint64)
-    init_bits(pack_rows(goal), pack_rows(free), e, f, px, pw)
+    erode_free(f0, f)
     for h in range(layers):
-        for mask, got in (
-            (goal, _bits(e[h, px : px + nx, 1, pw : pw + nw])),
-            (free, _bits(f[h, px : px + nx, pw : pw + nw])),
-        ):
-            padded = np.concatenate([mask, np.zeros((nx, h), dtype=bool)], axis=1)
-            expected = np.ones_like(mask)
-            for d in range(h + 1):
-                expected &= padded[:, d : d + ny]
-            np.testing.assert_array_equal(got[:, :ny], expected, err_msg=f"h={h}")
-    assert not e[:, :px].any()  # rows outside the grid stay empty: never winning
+        got = _bits(f[h, px : px + nx, pw : pw + nw])
+        padded = np.concatenate([free, np.zeros((nx, h), dtype=bool)], axis=1)
+        expected = np.ones_like(free)
+        for d in range(h + 1):
+            expected &= padded[:, d : d + ny]
+        np.testing.assert_array_equal(got[:, :ny], expected, err_msg=f"h={h}")
+    assert not f[:, :px].any()  # rows outside the grid stay empty
     assert not f[:, :, :pw].any()
+
+
+def test_successor_run_matches_numpy() -> None:
+    """successor_run over W (m, rows x, rows k, words): runs of n cells in all k rows."""
+    rng = np.random.default_rng(5)
+    m, n_x, n_k, nw, pw = 2, 4, 6, 2, 2
+    W = rng.integers(0, 2**64, size=(m, n_x, n_k, nw + 2 * pw), dtype=np.uint64)
+    W |= rng.integers(0, 2**64, size=W.shape, dtype=np.uint64)  # denser: runs survive
+    cells = _bits(W)  # (m, n_x, n_k, 64 (nw + 2 pw)), cell 0 at bit 64 pw
+    for _ in range(200):
+        u, x = int(rng.integers(m)), int(rng.integers(n_x))
+        kp0 = int(rng.integers(n_k - 2))
+        kp1 = kp0 + int(rng.integers(3))
+        wp = pw + int(rng.integers(nw))
+        oy0 = int(rng.integers(-6, 7))
+        n = int(rng.integers(1, 9))
+        got = _bits(np.array([successor_run(W, u, x, kp0, kp1, wp, oy0, n)], dtype=np.uint64))
+        rows = cells[u, x, kp0 : kp1 + 1].all(axis=0)
+        base = 64 * wp + oy0
+        expected = np.array([rows[base + b : base + b + n].all() for b in range(64)])
+        np.testing.assert_array_equal(got, expected, err_msg=f"{(u, x, kp0, kp1, wp, oy0, n)}")
+
+
+def test_init_layers_copies_the_goal_into_every_layer_and_wrap() -> None:
+    rng = np.random.default_rng(2)
+    m, nx, npsi, nw, px, ph, pw = 3, 4, 5, 2, 2, 2, 2
+    goal = rng.integers(0, 2**64, size=(nx, npsi, nw), dtype=np.uint64)
+    goal[1, 2] = 0  # a row without goal is not marked
+    W = np.zeros((m, nx + 2 * px, npsi + 2 * ph, nw + 2 * pw), dtype=np.uint64)
+    n_rw = (nx * npsi + 63) // 64
+    chmask = np.zeros((m, n_rw), dtype=np.uint64)
+    assert init_layers(goal, W, px, ph, pw, chmask) == nx * npsi - 1
+    for p in range(m):
+        np.testing.assert_array_equal(W[p, px : px + nx, ph : ph + npsi, pw : pw + nw], goal)
+        for kp in range(npsi + 2 * ph):  # padding heading rows hold the row they wrap to
+            k = (kp - ph) % npsi
+            np.testing.assert_array_equal(W[p, px : px + nx, kp, pw : pw + nw], goal[:, k])
+        marked = _bits(chmask[p])[: nx * npsi]
+        np.testing.assert_array_equal(marked, (goal != 0).any(axis=-1).reshape(-1))
+    assert not W[:, :px].any()
+    assert not W[:, :, :, :pw].any()
