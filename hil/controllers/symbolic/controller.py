@@ -36,7 +36,7 @@ U64Array = NDArray[np.uint64]
 
 __all__ = ["Controller", "SynthesisStats"]
 
-_FORMAT = "hil-symbolic-controller-2"
+_FORMAT = "hil-symbolic-controller-3"
 _TABLE_FIELDS = ("succ", "heading", "tube_x0", "tube_n", "tube_y", "hull_psi", "yaw_index")
 
 
@@ -75,9 +75,9 @@ class Controller:
     Args:
         tables: The abstraction the controller was synthesized on.
         lattice: The inputs' one-step neighbourhoods.
-        winning: Winning bits, shape (nx + 2 px, npsi + 2 ph, m, nw + 2 pw).
-        planes: Value bit planes, shape (nx, npsi, m, nw, n_planes).
-        viable: Tube-free bits per class, shape (3, nx, npsi, m, nw).
+        winning: Winning bits, shape (m, nx + 2 px, npsi + 2 ph, nw + 2 pw).
+        planes: Value bit planes, shape (m, nx, npsi, nw, n_planes).
+        viable: Tube-free bits per class, shape (3, m, nx, npsi, nw).
         pads: (px, ph, pw) of `winning`.
         obstacles: Cells touching an inflated obstacle, shape (nx, ny) (pictures).
         stats: Figures of the synthesis; `winning_cells` is filled in here.
@@ -345,9 +345,9 @@ class Controller:
             m = tables.n_inputs
             if (
                 tables.succ.shape != (N_CLASSES, grid.npsi, m, 4)
-                or planes.shape[:4] != (grid.nx, grid.npsi, m, (grid.ny + 63) // 64)
-                or viable.shape != (N_CLASSES, grid.nx, grid.npsi, m, (grid.ny + 63) // 64)
-                or winning.shape[2] != m
+                or planes.shape[:4] != (m, grid.nx, grid.npsi, (grid.ny + 63) // 64)
+                or viable.shape != (N_CLASSES, m, grid.nx, grid.npsi, (grid.ny + 63) // 64)
+                or winning.shape[0] != m
             ):
                 raise ControllerFileError(f"{str(path)!r}: arrays do not fit the grid and inputs")
             lattice = InputLattice.of(tables.inputs)

@@ -1,8 +1,8 @@
 """Compiled kernels of the controller: bit packing, values and the safe-input lookup.
 
-The winning sets and values are the synthesis' bit layout (:mod:`sweep`): W of shape
-(nx + 2 px, npsi + 2 ph, m, nw + 2 pw), value bit planes of shape
-(nx, npsi, m, nw, n_planes) and viable words of shape (3, nx, npsi, m, nw).
+The winning sets and values are the synthesis' bit layout (:mod:`sweep`), layer-major:
+W of shape (m, nx + 2 px, npsi + 2 ph, nw + 2 pw), value bit planes of shape
+(m, nx, npsi, nw, n_planes) and viable words of shape (3, m, nx, npsi, nw).
 """
 
 from __future__ import annotations
@@ -40,17 +40,17 @@ def state_value(
     W: U64Array, planes: U64Array, pads: I32Array, p: int, i: int, j: int, k: int
 ) -> int:
     """Return the value of state (cell (i, j, k), reference p); -1 if losing or off the grid."""
-    nx, npsi, _, nw, n_planes = planes.shape
+    _, nx, npsi, nw, n_planes = planes.shape
     if i < 0 or i >= nx or j < 0 or j >= 64 * nw:
         return -1
     kk = k % npsi
     w = j >> 6
     b = np.uint64(j & 63)
-    if (W[pads[0] + i, pads[1] + kk, p, pads[2] + w] >> b) & _ONE == _ZERO:
+    if (W[p, pads[0] + i, pads[1] + kk, pads[2] + w] >> b) & _ONE == _ZERO:
         return -1
     v = 0
     for q in range(n_planes):
-        if (planes[i, kk, p, w, q] >> b) & _ONE != _ZERO:
+        if (planes[p, i, kk, w, q] >> b) & _ONE != _ZERO:
             v |= 1 << q
     return v
 
@@ -75,7 +75,7 @@ def state_values(
 @njit
 def layer_values(W: U64Array, planes: U64Array, pads: I32Array, p: int, ny: int) -> I32Array:
     """Return the values of layer p, shape (nx, ny, npsi); -1 marks losing cells."""
-    nx, npsi = planes.shape[0], planes.shape[1]
+    nx, npsi = planes.shape[1], planes.shape[2]
     out = np.full((nx, ny, npsi), -1, dtype=np.int32)
     for i in range(nx):
         for k in range(npsi):
@@ -113,7 +113,7 @@ def safe_input_indices(
     best[0] is set to 1 + the least, over the safe inputs, of their largest successor
     value (the value a first decision earns), -1 with none.
     """
-    npsi = planes.shape[1]
+    npsi = planes.shape[2]
     best[0] = -1
     vc = state_value(W, planes, pads, p, i, j, k)
     if not first and vc <= 0:
@@ -128,7 +128,7 @@ def safe_input_indices(
     for c_idx in range(n_neighbours[p] + 1):
         u = p if c_idx == 0 else neighbours[p, c_idx - 1]
         cls = 2 if first else (0 if u == p else 1)
-        if (viable[cls, i, k, u, w] >> b) & _ONE == _ZERO:
+        if (viable[cls, u, i, k, w] >> b) & _ONE == _ZERO:
             continue
         ok_input = True
         worst = 0

@@ -107,7 +107,7 @@ class SymbolicProblem:
         """Return (nx, ny, npsi) bool: cells the hull may occupy at rest in each heading cell."""
         g = self.grid
         hp = g.heading_cell_rad
-        lo = -np.pi + hp * np.arange(g.npsi)
+        lo = np.asarray(-np.pi + hp * np.arange(g.npsi), dtype=np.float64)
         out: BoolArray = np.ascontiguousarray(np.moveaxis(self.free_masks(lo, lo + hp), 0, -1))
         return out
 

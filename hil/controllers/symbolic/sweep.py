@@ -9,19 +9,24 @@ budgeted by the class-0 tables, a change by the class-1 tables, so with
 
 the winning sets of the layers satisfy  W_p = A_p  union  (union over u in N(p) of B_u).
 Each level computes A_u and B_u once per input from the layer W_u they need (not once
-per (p, u) pair), then ORs B_u into the up to 26 neighbouring layers.
+per (p, u) pair); each layer p then gathers B_u from its up to 26 neighbours.
 
-Layout: W has shape (3, nx + 2 px, npsi + 2 ph, m, nw + 2 pw) (uint64): bit b of word
-pw + w in row (px + i, ph + k) of layer p of W[0] is cell (i, j = 64 w + b, k); W[1] and
-W[2] are its erosions along y (cells j .. j + 1, j .. j + 3 all win), so that a run of up
-to 8 successor cells along y is two reads. The layers are the inner axis so that the up
-to 26 layers a B_u joins share cache lines. Padding rows stay
-zero (not winning: outside the grid), heading rows k < 0 or k >= npsi copy the rows they
-wrap to. A successor box [ox0, ox1] x [oy0, oy1] x [ok0, ok1] of 64 cells at once is the
-AND over rows (i + ox, k + ok) of their y-runs shifted by oy0. The tube test is
-precomputed per solve as "viable" words (the tube is free of cells blocked for the hull,
-:mod:`hull`), shape (3, nx, npsi, m, nw). Values (the level a state joined at) are kept as bit planes
-(nx, npsi, m, nw, n_planes): bit q of the value of a state is its bit in plane q.
+Layout: W has shape (m, nx + 2 px, npsi + 2 ph, nw + 2 pw) (uint64), layer-major: bit b
+of word pw + w in row (px + i, ph + k) of layer p is cell (i, j = 64 w + b, k). A layer
+is small (625 KB on the paper grid) and the work of a level is done layer by layer, so
+the successor boxes read stay in cache. Padding rows stay zero (not winning: outside
+the grid), heading rows k < 0 or k >= npsi copy the rows they wrap to, pw >= 2 + the
+largest y offset // 64 (a successor run is read from three words). A successor box
+[ox0, ox1] x [oy0, oy1] x [ok0, ok1] of 64 cells at once is, per ox, the AND over the
+heading rows k + ok of three words, shifted by oy0 and eroded over the oy1 - oy0 + 1
+cells of the run (at most 64).
+
+Rows are numbered r = i * npsi + k; sets of rows are bitsets of shape (m, n_rw) with
+n_rw = ceil(nx npsi / 64) (bit r & 63 of word r >> 6, one bitset per layer). The tube
+test is precomputed per solve as "viable" words (the tube is free of cells blocked for
+the hull, :mod:`hull`), shape (3, m, nx, npsi, nw). Values (the level a state joined
+at) are kept as bit planes (m, nx, npsi, nw, n_planes): bit q of the value of a state
+is its bit in plane q.
 
 The fixed point follows the frontier: after each level only rows (u, i, k) whose
 successor boxes reach a row of W_u that changed are swept. Levels are exact BFS levels
@@ -45,6 +50,7 @@ __all__ = [
     "fixed_point_parallel",
     "fixed_point_serial",
     "init_layers",
+    "successor_run",
     "viable_words",
 ]
 
@@ -95,11 +101,12 @@ def viable_words(
     pw: int,
     out: U64Array,
 ) -> None:
-    """Fill out[cls, :, k, u, :]: cells whose tube (class cls, input u, heading k) is free.
+    """Fill out[cls, u, :, k, :]: cells whose tube (class cls, input u, heading k) is free.
 
-    Fe holds the free cells eroded along y, shape (layers, nx + 2 px, nw + 2 pw).
+    Fe holds the free cells eroded along y, shape (layers, nx + 2 px, nw + 2 pw); out
+    has shape (3, m, nx, npsi, nw).
     """
-    nx = out.shape[1]
+    nx = out.shape[2]
     nw = out.shape[4]
     x0 = tube_x0[cls, k, u]
     for i in range(nx):
@@ -116,7 +123,7 @@ def viable_words(
                 acc &= _shifted(Fe[h, x, a], Fe[h, x, a + 1], s)
                 if acc == _ZERO:
                     break
-            out[cls, i, k, u, w] = acc
+            out[cls, u, i, k, w] = acc
 
 
 @njit
@@ -127,40 +134,34 @@ def _copy_wraps(W: U64Array, p: int, ip: int, k: int, npsi: int, ph: int) -> Non
     other = kp - npsi * (kp // npsi)
     while other < n_kp:
         if other != kp:
-            for e in range(W.shape[0]):
-                for wp in range(W.shape[4]):
-                    W[e, ip, other, p, wp] = W[e, ip, kp, p, wp]
+            for wp in range(W.shape[3]):
+                W[p, ip, other, wp] = W[p, ip, kp, wp]
         other += npsi
 
 
 @njit
-def _erode(W: U64Array, p: int, ip: int, kp: int) -> None:
-    """Recompute the y-erosions of row (ip, kp) of layer p: W[1] pairs, W[2] quadruples.
-
-    Bit j of W[1] is set iff cells j, j + 1 win; of W[2] iff cells j .. j + 3 win.
-    """
-    n_w = W.shape[4]
-    for wp in range(n_w - 1):
-        W[1, ip, kp, p, wp] = W[0, ip, kp, p, wp] & _shifted(
-            W[0, ip, kp, p, wp], W[0, ip, kp, p, wp + 1], _ONE
-        )
-    W[1, ip, kp, p, n_w - 1] = _ZERO
-    for wp in range(n_w - 1):
-        W[2, ip, kp, p, wp] = W[1, ip, kp, p, wp] & _shifted(
-            W[1, ip, kp, p, wp], W[1, ip, kp, p, wp + 1], np.uint64(2)
-        )
-    W[2, ip, kp, p, n_w - 1] = _ZERO
+def _set(bits: U64Array, u: int, r: int) -> None:
+    bits[u, r >> 6] |= _ONE << np.uint64(r & 63)
 
 
 @njit
-def init_layers(
-    goal: U64Array, W: U64Array, px: int, ph: int, pw: int, chmask: U64Array, rows: I32Array
-) -> int:
-    """Set every layer of W to the goal words (nx, npsi, nw); return the rows listed.
+def _low_index(low: np.uint64) -> int:
+    """Return the index of the single set bit of `low`."""
+    b = 0
+    t = low
+    while t > _ONE:
+        t >>= _ONE
+        b += 1
+    return b
 
-    Those rows are marked changed in every layer (chmask) and listed in `rows`.
+
+@njit
+def init_layers(goal: U64Array, W: U64Array, px: int, ph: int, pw: int, chmask: U64Array) -> int:
+    """Set every layer of W to the goal words (nx, npsi, nw); return how many rows hold goal.
+
+    Those rows r = i * npsi + k are marked changed in every layer of chmask (m, n_rw).
     """
-    m = W.shape[3]
+    m = W.shape[0]
     nx, npsi, nw = goal.shape
     n = 0
     for i in range(nx):
@@ -169,41 +170,43 @@ def init_layers(
             for w in range(nw):
                 if goal[i, k, w] != _ZERO:
                     anyb = True
+            if not anyb:
+                continue
+            n += 1
+            r = i * npsi + k
             for p in range(m):
                 for w in range(nw):
-                    W[0, px + i, ph + k, p, pw + w] = goal[i, k, w]
-                _erode(W, p, px + i, ph + k)
+                    W[p, px + i, ph + k, pw + w] = goal[i, k, w]
                 _copy_wraps(W, p, px + i, k, npsi, ph)
-            if anyb:
-                r = i * npsi + k
-                rows[n] = r
-                n += 1
-                for p in range(m):
-                    chmask[r, p >> 6] |= _ONE << np.uint64(p & 63)
+                _set(chmask, p, r)
     return n
 
 
 @njit
-def _run(W: U64Array, x: int, kk: int, u: int, wp: int, oy0: int, oy1: int) -> np.uint64:
-    """Return the words whose cells j + oy0 .. j + oy1 all win in row (x, kk) of layer u.
+def successor_run(
+    W: U64Array, u: int, x: int, kp0: int, kp1: int, wp: int, oy0: int, n: int
+) -> np.uint64:
+    """Return the word of the successor runs of row word wp: n cells from oy0 along y.
 
-    Two reads of the erosions cover a run of up to 8 cells; longer runs take more.
+    Bit b is set iff cells 64 (wp - pw) + b + oy0 + (0 .. n - 1) win in every row
+    (x, kp0 .. kp1) of layer u (1 <= n <= 64). Three words per row are ANDed over the
+    heading rows, shifted by oy0 and eroded.
     """
-    n = oy1 - oy0 + 1
-    if n == 1:
-        a = wp + (oy0 >> 6)
-        return _shifted(W[0, x, kk, u, a], W[0, x, kk, u, a + 1], np.uint64(oy0 & 63))
-    e = 1 if n <= 4 else 2
-    span = 2 if e == 1 else 4
-    acc = ~_ZERO
-    oy = oy0
-    while True:
-        start = min(oy, oy1 - span + 1)
-        a = wp + (start >> 6)
-        acc &= _shifted(W[e, x, kk, u, a], W[e, x, kk, u, a + 1], np.uint64(start & 63))
-        if start + span - 1 >= oy1:
-            return acc
-        oy = start + span
+    a = wp + (oy0 >> 6)
+    x0 = ~_ZERO
+    x1 = ~_ZERO
+    x2 = ~_ZERO
+    for kk in range(kp0, kp1 + 1):
+        x0 &= W[u, x, kk, a]
+        x1 &= W[u, x, kk, a + 1]
+        x2 &= W[u, x, kk, a + 2]
+    s = np.uint64(oy0 & 63)
+    lo = _shifted(x0, x1, s)
+    hi = _shifted(x1, x2, s)
+    acc = lo
+    for d in range(1, n):
+        acc &= _shifted(lo, hi, np.uint64(d))
+    return acc
 
 
 @njit
@@ -217,27 +220,35 @@ def _check(
     box: I32Array,
     h0: int,
     h1: int,
+    kill: U8Array,
+    c: int,
+    r: int,
+    w: int,
 ) -> np.uint64:
-    """Return the bits of cand whose successor box (ox0, ox1, oy0, oy1) x [h0, h1] lies in W[u]."""
-    acc = cand
-    for ox in range(box[0], box[1] + 1):
-        for ok in range(h0, h1 + 1):
-            acc &= _run(W, ip + ox, kp + ok, u, wp, box[2], box[3])
+    """Return the bits of cand whose successor box (ox0, ox1, oy0, oy1) x [h0, h1] lies in W[u].
+
+    The box is read one column ox at a time (all its heading rows at once). The column
+    that last emptied the candidates, ox0 + kill[c, u, r, w], is read first (it is the
+    likeliest to fail again); when the candidates run out, the emptying column is stored.
+    """
+    n = box[3] - box[2] + 1
+    first = int(kill[c, u, r, w])
+    acc = cand & successor_run(W, u, ip + box[0] + first, kp + h0, kp + h1, wp, box[2], n)
+    if acc == _ZERO:
+        return acc
+    for q in range(box[1] - box[0] + 1):
+        if q != first:
+            acc &= successor_run(W, u, ip + box[0] + q, kp + h0, kp + h1, wp, box[2], n)
             if acc == _ZERO:
+                kill[c, u, r, w] = np.uint8(q)
                 return acc
     return acc
 
 
 @njit
-def _bit(mask: U64Array, r: int, u: int) -> bool:
-    return (mask[r, u >> 6] >> np.uint64(u & 63)) & _ONE != _ZERO
-
-
-@njit
-def _sweep_row(
-    r: int,
+def _sweep_layer(
+    u: int,
     npsi: int,
-    nw: int,
     px: int,
     ph: int,
     pw: int,
@@ -246,92 +257,66 @@ def _sweep_row(
     viable: U64Array,
     succ: I32Array,
     heading: I32Array,
-    nbr: I32Array,
-    nbr_n: I32Array,
     umask: U64Array,
+    hasA: U64Array,
+    hasB: U64Array,
     newA: U64Array,
     newB: U64Array,
+    kill: U8Array,
 ) -> None:
-    """Compute the states of row r = i * npsi + k that join A_u and B_u next level.
+    """Compute the states of the rows marked in umask[u] that join A_u and B_u next level.
 
-    For each input u marked in umask[r]: newA[r, u] and newB[r, u].
+    Writes newA[u, r] and newB[u, r] (m, n_rows, nw) for those rows and marks the rows
+    with any in hasA[u] / hasB[u] (cleared first); clears umask[u].
     """
-    k = r % npsi
-    i = r // npsi
-    ip = px + i
-    kp = ph + k
-    for mw in range(umask.shape[1]):
-        bits = umask[r, mw]
+    nw = Bset.shape[2]
+    ha0, ha1 = heading[0, u, 0], heading[0, u, 1]
+    hb0, hb1 = heading[1, u, 0], heading[1, u, 1]
+    for rw in range(umask.shape[1]):
+        hasA[u, rw] = _ZERO
+        hasB[u, rw] = _ZERO
+    for rw in range(umask.shape[1]):
+        bits = umask[u, rw]
+        umask[u, rw] = _ZERO
         while bits != _ZERO:
             low = bits & (~bits + _ONE)
-            b = 0
-            t = low
-            while t > _ONE:
-                t >>= _ONE
-                b += 1
             bits ^= low
-            u = 64 * mw + b
+            r = 64 * rw + _low_index(low)
+            k = r % npsi
+            i = r // npsi
+            ip = px + i
+            kp = ph + k
+            box_a = succ[0, k, u]
+            box_b = succ[1, k, u]
+            any_a = _ZERO
+            any_b = _ZERO
             for w in range(nw):
                 wp = pw + w
-                cur = W[0, ip, kp, u, wp]
-                cand_a = viable[0, i, k, u, w] & ~cur
+                cur = W[u, ip, kp, wp]
+                cand_a = viable[0, u, i, k, w] & ~cur
                 got_a = _ZERO
                 if cand_a != _ZERO:
-                    got_a = _check(
-                        cand_a, W, u, ip, kp, wp, succ[0, k, u], heading[0, u, 0], heading[0, u, 1]
-                    )
-                # B_u needs the larger class-1 boxes: only states that pass class 0 can,
-                # and only states some neighbouring layer still lacks matter.
-                cand_b = viable[1, i, k, u, w] & ~Bset[i, k, u, w] & (got_a | cur)
-                if cand_b != _ZERO:
-                    everywhere = ~_ZERO
-                    for n in range(nbr_n[u]):
-                        everywhere &= W[0, ip, kp, nbr[u, n], wp]
-                    cand_b &= ~everywhere
+                    got_a = _check(cand_a, W, u, ip, kp, wp, box_a, ha0, ha1, kill, 0, r, w)
+                # B_u needs the larger class-1 boxes: only states that pass class 0 can.
+                cand_b = viable[1, u, i, k, w] & ~Bset[u, r, w] & (got_a | cur)
                 got_b = _ZERO
                 if cand_b != _ZERO:
-                    got_b = _check(
-                        cand_b, W, u, ip, kp, wp, succ[1, k, u], heading[1, u, 0], heading[1, u, 1]
-                    )
-                newA[r, u, w] = got_a
-                newB[r, u, w] = got_b
+                    got_b = _check(cand_b, W, u, ip, kp, wp, box_b, hb0, hb1, kill, 1, r, w)
+                newA[u, r, w] = got_a
+                newB[u, r, w] = got_b
+                any_a |= got_a
+                any_b |= got_b
+            if any_a != _ZERO:
+                hasA[u, rw] |= low
+            if any_b != _ZERO:
+                hasB[u, rw] |= low
 
 
 @njit
-def _join(
+def _apply_layer(
     p: int,
-    i: int,
-    k: int,
-    w: int,
-    bits: np.uint64,
-    level: int,
-    px: int,
-    ph: int,
-    pw: int,
-    W: U64Array,
-    planes: U64Array,
-) -> bool:
-    """Add `bits` to layer p at `level`; return True when a state joined."""
-    fresh = bits & ~W[0, px + i, ph + k, p, pw + w]
-    if fresh == _ZERO:
-        return False
-    W[0, px + i, ph + k, p, pw + w] |= fresh
-    q = 0
-    lv = level
-    while lv > 0:
-        if lv & 1:
-            planes[i, k, p, w, q] |= fresh
-        lv >>= 1
-        q += 1
-    return True
-
-
-@njit
-def _apply_row(
-    r: int,
     level: int,
     npsi: int,
-    nw: int,
     px: int,
     ph: int,
     pw: int,
@@ -340,124 +325,102 @@ def _apply_row(
     planes: U64Array,
     nbr: I32Array,
     nbr_n: I32Array,
-    umask: U64Array,
+    hasA: U64Array,
+    hasB: U64Array,
     newA: U64Array,
     newB: U64Array,
     chmask: U64Array,
-) -> None:
-    """Merge row r's new states into the layers; mark changed layers in chmask[r].
+) -> int:
+    """Join A_p and the neighbours' B_u into layer p at `level`; return the rows changed.
 
-    Clears umask[r]. Touches only row r (and its heading copies).
+    Marks them in chmask[p]; adds B_p to Bset[p]. Writes only layer p.
     """
-    k = r % npsi
-    i = r // npsi
-    for mw in range(umask.shape[1]):
-        bits = umask[r, mw]
-        umask[r, mw] = _ZERO
-        while bits != _ZERO:
-            low = bits & (~bits + _ONE)
-            b = 0
-            t = low
-            while t > _ONE:
-                t >>= _ONE
-                b += 1
-            bits ^= low
-            u = 64 * mw + b
+    nw = Bset.shape[2]
+    nn = nbr_n[p]
+    n_changed = 0
+    for rw in range(hasA.shape[1]):
+        rows = hasA[p, rw]
+        for n in range(nn):
+            rows |= hasB[nbr[p, n], rw]
+        mine_b = hasB[p, rw]
+        while mine_b != _ZERO:
+            low = mine_b & (~mine_b + _ONE)
+            mine_b ^= low
+            r = 64 * rw + _low_index(low)
             for w in range(nw):
-                got = newA[r, u, w]
-                if got != _ZERO and _join(u, i, k, w, got, level, px, ph, pw, W, planes):
-                    chmask[r, u >> 6] |= _ONE << np.uint64(u & 63)
-                got = newB[r, u, w]
-                if got != _ZERO:
-                    Bset[i, k, u, w] |= got
-                    for n in range(nbr_n[u]):
-                        p = nbr[u, n]
-                        if _join(p, i, k, w, got, level, px, ph, pw, W, planes):
-                            chmask[r, p >> 6] |= _ONE << np.uint64(p & 63)
-    for mw in range(chmask.shape[1]):
-        bits = chmask[r, mw]
-        while bits != _ZERO:
-            low = bits & (~bits + _ONE)
-            b = 0
-            t = low
-            while t > _ONE:
-                t >>= _ONE
-                b += 1
-            bits ^= low
-            p = 64 * mw + b
-            _erode(W, p, px + i, ph + k)
-            _copy_wraps(W, p, px + i, k, npsi, ph)
+                Bset[p, r, w] |= newB[p, r, w]
+        while rows != _ZERO:
+            low = rows & (~rows + _ONE)
+            rows ^= low
+            b = _low_index(low)
+            r = 64 * rw + b
+            k = r % npsi
+            i = r // npsi
+            ip = px + i
+            kp = ph + k
+            changed = False
+            a_here = (hasA[p, rw] & low) != _ZERO
+            for w in range(nw):
+                acc = newA[p, r, w] if a_here else _ZERO
+                for n in range(nn):
+                    u = nbr[p, n]
+                    if (hasB[u, rw] & low) != _ZERO:
+                        acc |= newB[u, r, w]
+                fresh = acc & ~W[p, ip, kp, pw + w]
+                if fresh == _ZERO:
+                    continue
+                changed = True
+                W[p, ip, kp, pw + w] |= fresh
+                q = 0
+                lv = level
+                while lv > 0:
+                    if lv & 1:
+                        planes[p, i, k, w, q] |= fresh
+                    lv >>= 1
+                    q += 1
+            if changed:
+                chmask[p, rw] |= low
+                _copy_wraps(W, p, ip, k, npsi, ph)
+                n_changed += 1
+    return n_changed
 
 
 @njit
-def _activate(
-    changed_rows: I32Array,
-    n_changed: int,
+def _activate_layer(
+    u: int,
     nx: int,
     npsi: int,
     reach: I32Array,
     h_reach: I32Array,
     chmask: U64Array,
     umask: U64Array,
-    row_flag: U8Array,
-    active_rows: I32Array,
 ) -> int:
-    """Mark the rows (i0, k0) and inputs u to sweep next; return how many rows.
+    """Mark in umask[u] the rows whose successor boxes reach a row changed in chmask[u].
 
-    A row is marked for u (umask) when u's successor boxes reach a row where W_u
-    changed (chmask, cleared here); the rows are listed in active_rows.
-
+    Clears chmask[u]; returns how many changed rows there were.
     reach[k, u] = (min ox, max ox) over both classes, h_reach[u] = (min ok, max ok).
     """
     n = 0
-    for c in range(n_changed):
-        r = changed_rows[c]
-        k1 = r % npsi
-        i1 = r // npsi
-        for mw in range(chmask.shape[1]):
-            bits = chmask[r, mw]
-            chmask[r, mw] = _ZERO
-            while bits != _ZERO:
-                low = bits & (~bits + _ONE)
-                b = 0
-                t = low
-                while t > _ONE:
-                    t >>= _ONE
-                    b += 1
-                bits ^= low
-                u = 64 * mw + b
-                for ok in range(h_reach[u, 0], h_reach[u, 1] + 1):
-                    k0 = k1 - ok
-                    while k0 < 0:
-                        k0 += npsi
-                    while k0 >= npsi:
-                        k0 -= npsi
-                    lo = max(i1 - reach[k0, u, 1], 0)
-                    hi = min(i1 - reach[k0, u, 0], nx - 1)
-                    for i0 in range(lo, hi + 1):
-                        r0 = i0 * npsi + k0
-                        umask[r0, mw] |= low
-                        if row_flag[r0] == 0:
-                            row_flag[r0] = 1
-                            active_rows[n] = r0
-                            n += 1
-    for a in range(n):
-        row_flag[active_rows[a]] = 0
-    return n
-
-
-@njit
-def _changed_rows(
-    active_rows: I32Array, n_active: int, chmask: U64Array, changed_rows: I32Array
-) -> int:
-    n = 0
-    for a in range(n_active):
-        r = active_rows[a]
-        for mw in range(chmask.shape[1]):
-            if chmask[r, mw] != _ZERO:
-                changed_rows[n] = r
-                n += 1
-                break
+    for rw in range(chmask.shape[1]):
+        bits = chmask[u, rw]
+        chmask[u, rw] = _ZERO
+        while bits != _ZERO:
+            low = bits & (~bits + _ONE)
+            bits ^= low
+            r = 64 * rw + _low_index(low)
+            n += 1
+            k1 = r % npsi
+            i1 = r // npsi
+            for ok in range(h_reach[u, 0], h_reach[u, 1] + 1):
+                k0 = k1 - ok
+                while k0 < 0:
+                    k0 += npsi
+                while k0 >= npsi:
+                    k0 -= npsi
+                lo = max(i1 - reach[k0, u, 1], 0)
+                hi = min(i1 - reach[k0, u, 0], nx - 1)
+                for i0 in range(lo, hi + 1):
+                    _set(umask, u, i0 * npsi + k0)
     return n
 
 
@@ -474,85 +437,49 @@ def fixed_point_serial(
     h_reach: I32Array,
     nbr: I32Array,
     nbr_n: I32Array,
-    changed_rows: I32Array,
-    n_changed: int,
     chmask: U64Array,
     umask: U64Array,
-    row_flag: U8Array,
-    active_rows: I32Array,
+    hasA: U64Array,
+    hasB: U64Array,
     newA: U64Array,
     newB: U64Array,
+    kill: U8Array,
 ) -> int:
     """Run the fixed point on the calling thread; return the number of levels (-1: too many).
 
     On entry W holds the goal in every layer and chmask marks its rows
-    (:func:`init_layers`), Bset, planes and umask are zero, viable comes from
-    :func:`viable_words`. Row arrays are indexed r = i * npsi + k.
+    (:func:`init_layers`); Bset, planes, umask and kill are zero, viable comes from
+    :func:`viable_words`. Shapes: Bset, newA, newB (m, n_rows, nw); chmask, umask,
+    hasA, hasB (m, n_rw); kill (2, m, n_rows, nw).
     """
-    nx, npsi, _, nw = Bset.shape
+    m = W.shape[0]
+    nx = planes.shape[1]
+    npsi = planes.shape[2]
     px, ph, pw = pads[0], pads[1], pads[2]
     max_level = (1 << planes.shape[4]) - 1
     level = 0
-    n_active = _activate(
-        changed_rows, n_changed, nx, npsi, reach, h_reach, chmask, umask, row_flag, active_rows
-    )
-    while n_active > 0:
+    n_changed = 0
+    for u in range(m):
+        n_changed += _activate_layer(u, nx, npsi, reach, h_reach, chmask, umask)
+    while n_changed > 0:
         if level + 1 > max_level:
             return -1
-        for a in range(n_active):
-            _sweep_row(
-                active_rows[a],
-                npsi,
-                nw,
-                px,
-                ph,
-                pw,
-                W,
-                Bset,
-                viable,
-                succ,
-                heading,
-                nbr,
-                nbr_n,
-                umask,
-                newA,
-                newB,
-            )
-        for a in range(n_active):
-            _apply_row(
-                active_rows[a],
-                level + 1,
-                npsi,
-                nw,
-                px,
-                ph,
-                pw,
-                W,
-                Bset,
-                planes,
-                nbr,
-                nbr_n,
-                umask,
-                newA,
-                newB,
-                chmask,
-            )
-        n_changed = _changed_rows(active_rows, n_active, chmask, changed_rows)
+        for u in range(m):
+            _sweep_layer(
+                u, npsi, px, ph, pw, W, Bset, viable, succ, heading, umask, hasA, hasB,
+                newA, newB, kill,
+            )  # fmt: skip
+        n_changed = 0
+        for p in range(m):
+            n_changed += _apply_layer(
+                p, level + 1, npsi, px, ph, pw, W, Bset, planes, nbr, nbr_n, hasA, hasB,
+                newA, newB, chmask,
+            )  # fmt: skip
         if n_changed == 0:
             break
         level += 1
-        n_active = _activate(
-            changed_rows,
-            n_changed,
-            nx,
-            npsi,
-            reach,
-            h_reach,
-            chmask,
-            umask,
-            row_flag,
-            active_rows,
-        )
+        for u in range(m):
+            _activate_layer(u, nx, npsi, reach, h_reach, chmask, umask)
     return level
 
 
@@ -569,81 +496,46 @@ def fixed_point_parallel(
     h_reach: I32Array,
     nbr: I32Array,
     nbr_n: I32Array,
-    changed_rows: I32Array,
-    n_changed: int,
     chmask: U64Array,
     umask: U64Array,
-    row_flag: U8Array,
-    active_rows: I32Array,
+    hasA: U64Array,
+    hasB: U64Array,
     newA: U64Array,
     newB: U64Array,
+    kill: U8Array,
 ) -> int:
-    """Run the fixed point of :func:`fixed_point_serial` with each level's rows threaded.
+    """Run the fixed point of :func:`fixed_point_serial` with each level's layers threaded.
 
-    Rows are independent: a row's joins touch only that row and its heading copies.
+    Layers are independent within each phase: a sweep writes only its input's entries,
+    a layer's apply writes only that layer, an activation only that layer's marks.
     """
-    nx, npsi, _, nw = Bset.shape
+    m = W.shape[0]
+    nx = planes.shape[1]
+    npsi = planes.shape[2]
     px, ph, pw = pads[0], pads[1], pads[2]
     max_level = (1 << planes.shape[4]) - 1
+    counts = np.zeros(m, dtype=np.int64)
     level = 0
-    n_active = _activate(
-        changed_rows, n_changed, nx, npsi, reach, h_reach, chmask, umask, row_flag, active_rows
-    )
-    while n_active > 0:
+    for u in prange(m):
+        counts[u] = _activate_layer(u, nx, npsi, reach, h_reach, chmask, umask)
+    n_changed = counts.sum()
+    while n_changed > 0:
         if level + 1 > max_level:
             return -1
-        for a in prange(n_active):
-            _sweep_row(
-                active_rows[a],
-                npsi,
-                nw,
-                px,
-                ph,
-                pw,
-                W,
-                Bset,
-                viable,
-                succ,
-                heading,
-                nbr,
-                nbr_n,
-                umask,
-                newA,
-                newB,
-            )
-        for a in prange(n_active):
-            _apply_row(
-                active_rows[a],
-                level + 1,
-                npsi,
-                nw,
-                px,
-                ph,
-                pw,
-                W,
-                Bset,
-                planes,
-                nbr,
-                nbr_n,
-                umask,
-                newA,
-                newB,
-                chmask,
-            )
-        n_changed = _changed_rows(active_rows, n_active, chmask, changed_rows)
+        for u in prange(m):
+            _sweep_layer(
+                u, npsi, px, ph, pw, W, Bset, viable, succ, heading, umask, hasA, hasB,
+                newA, newB, kill,
+            )  # fmt: skip
+        for p in prange(m):
+            counts[p] = _apply_layer(
+                p, level + 1, npsi, px, ph, pw, W, Bset, planes, nbr, nbr_n, hasA, hasB,
+                newA, newB, chmask,
+            )  # fmt: skip
+        n_changed = counts.sum()
         if n_changed == 0:
             break
         level += 1
-        n_active = _activate(
-            changed_rows,
-            n_changed,
-            nx,
-            npsi,
-            reach,
-            h_reach,
-            chmask,
-            umask,
-            row_flag,
-            active_rows,
-        )
+        for u in prange(m):
+            _activate_layer(u, nx, npsi, reach, h_reach, chmask, umask)
     return level

@@ -69,14 +69,14 @@ def _all_viable(
     Fe: U64Array,
     out: U64Array,
 ) -> None:
-    """Fill out (3, nx, npsi, m, nw): viable words of every (class, input, heading cell).
+    """Fill out (3, m, nx, npsi, nw): viable words of every (class, input, heading cell).
 
     free_words (n_ranges, nx, nw) are the packed free masks; order[starts[h]:starts[h+1]]
     lists the flat (c, k, u) whose hull range is h.
     """
     n_ranges, nx, nw = free_words.shape
-    npsi = out.shape[2]
-    m = out.shape[3]
+    m = out.shape[1]
+    npsi = out.shape[3]
     for h in range(n_ranges):
         if starts[h] == starts[h + 1]:
             continue
@@ -138,6 +138,8 @@ class Synthesizer:
         self._pads = np.array(
             [reach_x + 1, int(np.abs(hd).max()), 2 + max_oy // 64], dtype=np.int32
         )
+        if int((succ[..., 3] - succ[..., 2]).max()) >= 64:
+            raise GridError("successor boxes longer than 64 cells along y are not supported")
         self._f_layers = int((tables.tube_y[..., 1] - tables.tube_y[..., 0]).max()) + 1
         ranges = tables.hull_range_index().ravel()  # flat (c, k, u) -> range
         self._order = np.ascontiguousarray(np.argsort(ranges, kind="stable").astype(np.int32))
@@ -259,7 +261,7 @@ class Synthesizer:
         px, ph, pw = (int(p) for p in self._pads)
         nw = (ny + 63) // 64
         free_words = pack_rows(np.ascontiguousarray(free.reshape(-1, ny))).reshape(n_ranges, nx, nw)
-        viable = np.zeros((N_CLASSES, nx, npsi, m, nw), dtype=np.uint64)
+        viable = np.zeros((N_CLASSES, m, nx, npsi, nw), dtype=np.uint64)
         f_pad = np.zeros((nx + 2 * px, nw + 2 * pw), dtype=np.uint64)
         f_eroded = np.zeros((self._f_layers, nx + 2 * px, nw + 2 * pw), dtype=np.uint64)
         _all_viable(
@@ -277,24 +279,24 @@ class Synthesizer:
         )
         goal_cells = np.ascontiguousarray(np.transpose(target, (0, 2, 1)).reshape(-1, ny))
         goal = pack_rows(goal_cells).reshape(nx, npsi, nw)
-        W = np.zeros((3, nx + 2 * px, npsi + 2 * ph, m, nw + 2 * pw), dtype=np.uint64)
+        W = np.zeros((m, nx + 2 * px, npsi + 2 * ph, nw + 2 * pw), dtype=np.uint64)
         n_rows = nx * npsi
-        mw = (m + 63) // 64
-        chmask = np.zeros((n_rows, mw), dtype=np.uint64)
-        changed_rows = np.empty(n_rows, dtype=np.int32)
-        n_changed = init_layers(goal, W, px, ph, pw, chmask, changed_rows)
-        b_set = np.zeros((nx, npsi, m, nw), dtype=np.uint64)
-        planes = np.zeros((nx, npsi, m, nw, N_PLANES), dtype=np.uint64)
-        umask = np.zeros((n_rows, mw), dtype=np.uint64)
-        row_flag = np.zeros(n_rows, dtype=np.uint8)
-        active_rows = np.empty(n_rows, dtype=np.int32)
-        new_a = np.empty((n_rows, m, nw), dtype=np.uint64)
-        new_b = np.empty((n_rows, m, nw), dtype=np.uint64)
+        n_rw = (n_rows + 63) // 64
+        chmask = np.zeros((m, n_rw), dtype=np.uint64)
+        init_layers(goal, W, px, ph, pw, chmask)
+        b_set = np.zeros((m, n_rows, nw), dtype=np.uint64)
+        planes = np.zeros((m, nx, npsi, nw, N_PLANES), dtype=np.uint64)
+        umask = np.zeros((m, n_rw), dtype=np.uint64)
+        has_a = np.zeros((m, n_rw), dtype=np.uint64)
+        has_b = np.zeros((m, n_rw), dtype=np.uint64)
+        new_a = np.empty((m, n_rows, nw), dtype=np.uint64)
+        new_b = np.empty((m, n_rows, nw), dtype=np.uint64)
+        kill = np.zeros((2, m, n_rows, nw), dtype=np.uint8)
         lat = self._lattice
         args = (
             W, b_set, viable, planes, self._pads, t.succ, t.heading, self._reach,
-            self._h_reach, lat.neighbours, lat.n_neighbours, changed_rows, n_changed, chmask,
-            umask, row_flag, active_rows, new_a, new_b,
+            self._h_reach, lat.neighbours, lat.n_neighbours, chmask, umask, has_a, has_b,
+            new_a, new_b, kill,
         )  # fmt: skip
         threads = 1 if self._threads == 1 else (self._threads or _max_threads())
         if threads == 1:
@@ -309,9 +311,8 @@ class Synthesizer:
         if levels < 0:
             raise GridError(f"the fixed point needs more than {2**N_PLANES - 1} levels")
         seconds = time.perf_counter() - t0
-        winning = np.ascontiguousarray(W[0])
         return Controller(
-            t, lat, winning, planes, viable, self._pads, obstacles.astype(bool), SynthesisStats(
+            t, lat, W, planes, viable, self._pads, obstacles.astype(bool), SynthesisStats(
                 levels=int(levels), seconds=seconds, winning_cells=0,
                 free_cells=int((~obstacles).sum()) * npsi if free_cells is None else free_cells,
                 target_cells=int(target.sum()),

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -180,3 +181,23 @@ def test_listed_inputs_are_safe_when_flown(
                 # A first decision promises a winning end; later ones a smaller value.
                 assert value < (math.inf if first else v0), (cell, p, int(u), first, end, v0)
     assert flights > 300
+
+
+def test_save_and_load_round_trip(solved: tuple[Synthesizer, Controller], tmp_path: Path) -> None:
+    _, controller = solved
+    path = tmp_path / "controller.npz"
+    controller.save(path)
+    loaded = Controller.load(path)
+    assert loaded.stats == controller.stats
+    g = controller.grid
+    for p in range(controller.inputs.shape[0]):
+        np.testing.assert_array_equal(loaded.layer_values(p), controller.layer_values(p))
+    rng = np.random.default_rng(5)
+    for _ in range(200):
+        cell = (int(rng.integers(g.nx)), int(rng.integers(g.ny)), int(rng.integers(g.npsi)))
+        p = int(rng.integers(controller.inputs.shape[0]))
+        for first in (False, True):
+            np.testing.assert_array_equal(
+                loaded.safe_input_indices_at(cell, p, first),
+                controller.safe_input_indices_at(cell, p, first),
+            )

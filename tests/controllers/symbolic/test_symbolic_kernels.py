@@ -8,25 +8,23 @@ from numpy.typing import NDArray
 
 from hil.controllers.symbolic import Controller, SymbolicProblem
 from hil.controllers.symbolic.kernels import layer_values, pack_rows, state_value, state_values
-from hil.controllers.symbolic.sweep import _shifted, erode_free
+from hil.controllers.symbolic.sweep import _shifted, erode_free, init_layers, successor_run
 from tests.controllers.symbolic import tiny
 
 U64Array = NDArray[np.uint64]
 
 
-def _bits(words: U64Array) -> NDArray[np.bool_]:
+def _bits(words: np.ndarray) -> np.ndarray:
     """Unpack uint64 words (..., nw) to bools (..., 64 nw), bit j of word w at 64 w + j."""
     out = (words[..., :, None] >> np.arange(64, dtype=np.uint64)) & np.uint64(1)
     return out.reshape(*words.shape[:-1], -1).astype(bool)
 
 
-@pytest.mark.parametrize("ny", [1, 5, 63, 64, 70, 130])
+@pytest.mark.parametrize("ny", [5, 64, 70, 130])
 def test_pack_rows_matches_numpy(ny: int) -> None:
     mask = np.random.default_rng(ny).random((3, ny)) < 0.6
-    packed = pack_rows(mask)
-    assert packed.shape == (3, (ny + 63) // 64)
-    np.testing.assert_array_equal(_bits(packed)[:, :ny], mask)
-    assert not _bits(packed)[:, ny:].any()
+    np.testing.assert_array_equal(_bits(pack_rows(mask))[:, :ny], mask)
+    assert not _bits(pack_rows(mask))[:, ny:].any()
 
 
 def test_shifted_reads_across_the_word_boundary() -> None:
@@ -40,29 +38,73 @@ def test_shifted_reads_across_the_word_boundary() -> None:
         np.testing.assert_array_equal(got, both[s : s + 64], err_msg=f"s={s}")
 
 
-def test_erode_free_matches_numpy() -> None:
+def test_erode_free_erodes_like_numpy() -> None:
     rng = np.random.default_rng(0)
-    rows, ny, layers = 4, 150, 70  # runs longer than a word
-    free = rng.random((rows, ny)) < 0.97
-    free[0] = True
-    words = pack_rows(free)
-    out = np.zeros((layers, rows, words.shape[1]), dtype=np.uint64)
-    erode_free(words, out)
+    nx, ny, px, pw = 3, 100, 2, 2
+    free = rng.random((nx, ny)) < 0.8
+    nw = (ny + 63) // 64
+    layers = 5
+    f0 = np.zeros((nx + 2 * px, nw + 2 * pw), dtype=np.uint64)
+    f0[px : px + nx, pw : pw + nw] = pack_rows(free)
+    f = np.zeros((layers, nx + 2 * px, nw + 2 * pw), dtype=np.uint64)
+    erode_free(f0, f)
     for h in range(layers):
-        padded = np.concatenate([free, np.zeros((rows, h), dtype=bool)], axis=1)
+        got = _bits(f[h, px : px + nx, pw : pw + nw])
+        padded = np.concatenate([free, np.zeros((nx, h), dtype=bool)], axis=1)
         expected = np.ones_like(free)
         for d in range(h + 1):
             expected &= padded[:, d : d + ny]
-        np.testing.assert_array_equal(_bits(out[h])[:, :ny], expected, err_msg=f"h={h}")
-        assert not _bits(out[h])[:, ny:].any()
-    assert _bits(out[layers - 1])[0, : ny - layers + 1].all()
+        np.testing.assert_array_equal(got[:, :ny], expected, err_msg=f"h={h}")
+    assert not f[:, :px].any()  # rows outside the grid stay empty
+    assert not f[:, :, :pw].any()
+
+
+def test_successor_run_matches_numpy() -> None:
+    """successor_run over W (m, rows x, rows k, words): runs of n cells in all k rows."""
+    rng = np.random.default_rng(5)
+    m, n_x, n_k, nw, pw = 2, 4, 6, 2, 2
+    W = rng.integers(0, 2**64, size=(m, n_x, n_k, nw + 2 * pw), dtype=np.uint64)
+    W |= rng.integers(0, 2**64, size=W.shape, dtype=np.uint64)  # denser: runs survive
+    cells = _bits(W)  # (m, n_x, n_k, 64 (nw + 2 pw)), cell 0 at bit 64 pw
+    for _ in range(200):
+        u, x = int(rng.integers(m)), int(rng.integers(n_x))
+        kp0 = int(rng.integers(n_k - 2))
+        kp1 = kp0 + int(rng.integers(3))
+        wp = pw + int(rng.integers(nw))
+        oy0 = int(rng.integers(-6, 7))
+        n = int(rng.integers(1, 9))
+        got = _bits(np.array([successor_run(W, u, x, kp0, kp1, wp, oy0, n)], dtype=np.uint64))
+        rows = cells[u, x, kp0 : kp1 + 1].all(axis=0)
+        base = 64 * wp + oy0
+        expected = np.array([rows[base + b : base + b + n].all() for b in range(64)])
+        np.testing.assert_array_equal(got, expected, err_msg=f"{(u, x, kp0, kp1, wp, oy0, n)}")
+
+
+def test_init_layers_copies_the_goal_into_every_layer_and_wrap() -> None:
+    rng = np.random.default_rng(2)
+    m, nx, npsi, nw, px, ph, pw = 3, 4, 5, 2, 2, 2, 2
+    goal = rng.integers(0, 2**64, size=(nx, npsi, nw), dtype=np.uint64)
+    goal[1, 2] = 0  # a row without goal is not marked
+    W = np.zeros((m, nx + 2 * px, npsi + 2 * ph, nw + 2 * pw), dtype=np.uint64)
+    n_rw = (nx * npsi + 63) // 64
+    chmask = np.zeros((m, n_rw), dtype=np.uint64)
+    assert init_layers(goal, W, px, ph, pw, chmask) == nx * npsi - 1
+    for p in range(m):
+        np.testing.assert_array_equal(W[p, px : px + nx, ph : ph + npsi, pw : pw + nw], goal)
+        for kp in range(npsi + 2 * ph):  # padding heading rows hold the row they wrap to
+            k = (kp - ph) % npsi
+            np.testing.assert_array_equal(W[p, px : px + nx, kp, pw : pw + nw], goal[:, k])
+        marked = _bits(chmask[p])[: nx * npsi]
+        np.testing.assert_array_equal(marked, (goal != 0).any(axis=-1).reshape(-1))
+    assert not W[:, :px].any()
+    assert not W[:, :, :, :pw].any()
 
 
 def test_viable_words_are_the_free_tubes(problem: SymbolicProblem, controller: Controller) -> None:
     t = controller.tables
     g = t.grid
     free = tiny.flat_free(problem, t)
-    viable = _bits(controller._viable)[..., : g.ny]  # (3, nx, npsi, m, ny)
+    viable = _bits(controller._viable)[..., : g.ny]  # (3, m, nx, npsi, ny)
     rng = np.random.default_rng(2)
     checked = 0
     for c in range(3):
@@ -71,7 +113,7 @@ def test_viable_words_are_the_free_tubes(problem: SymbolicProblem, controller: C
                 for i in range(g.nx):
                     for j in range(0, g.ny, 3):
                         want = tiny.tube_free(t, free, c, (i, j, int(k)), u)
-                        assert viable[c, i, k, u, j] == want, (c, i, j, k, u)
+                        assert viable[c, u, i, k, j] == want, (c, i, j, k, u)
                         checked += want
     assert checked > 1000
 
@@ -79,7 +121,7 @@ def test_viable_words_are_the_free_tubes(problem: SymbolicProblem, controller: C
 def test_value_lookups_agree(controller: Controller) -> None:
     W, planes, pads = controller._W, controller._planes, controller._pads
     g = controller.grid
-    nw = planes.shape[3]
+    nw = planes.shape[3]  # (m, nx, npsi, nw, n_planes)
     i, j, k = (a.ravel().astype(np.int64) for a in np.indices(g.shape))
     seen_levels = set()
     for p in range(0, controller.tables.n_inputs, 3):
