@@ -39,7 +39,7 @@ def test_the_recording_has_the_arena_vessel_controller_and_plots(exported: Expor
         "/plots/velocity/surge/commanded",
         "/plots/velocity/yaw_rate/estimated",
         "/plots/tracking_error/sway/error",
-        "/plots/tracking_error/sway/margin",
+        "/plots/tracking_error/sway/envelope",
         "/plots/thrusters/commands",
         "/plots/thrusters/azimuth_deg",
         "/plots/value",
