@@ -141,8 +141,8 @@ class LiveRerunLog:
         self._at(t_ns)
         bound = np.full(3, np.nan)
         in_force = [d for d in self._decided if d[0] <= t_ns]
-        if in_force and in_force[-1][1] is not None:
-            decided_ns, cls = in_force[-1]
+        decided_ns, cls = in_force[-1] if in_force else (t_ns, None)
+        if cls is not None:
             since = np.array([(t_ns - decided_ns) / 1e9])
             bound = envelope_bound(self.scenario.transient, cls, since)[0]
         for k, (axis, _) in enumerate(AXES):
