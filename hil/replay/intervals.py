@@ -101,6 +101,37 @@ def contract_of(adapter: SymbolicAdapter, d: Decision) -> DecisionContract | Non
     return adapter.contract(np.array(d.state), d.chosen_index, d.reference_index, d.first)
 
 
+def budget_class(d: Decision) -> int | None:
+    """Return the budget class of a recorded decision; None when it chose no input.
+
+    2 (start) for a first decision, 0 (hold) when it kept the reference in force, else
+    1 (change): the class its contract is built with.
+    """
+    if d.chosen_index < 0:
+        return None
+    if d.first:
+        return 2
+    return 0 if d.chosen_index == d.reference_index else 1
+
+
+def envelope_bound(budget: TransientBudget, budget_class: int, since_s: FloatArray) -> FloatArray:
+    """Return the judged bound on |nu_hat - nu_ref| per sample and axis, (N, 3).
+
+    The envelope of the class at each time since the decision plus
+    :data:`VELOCITY_ESTIMATE_TOLERANCE` (surge m/s, sway m/s, yaw rad/s).
+
+    Args:
+        budget: The scenario's transient budget.
+        budget_class: The decision's class, clipped to the envelopes' classes.
+        since_s: Time since the decision of each sample (s), shape (N,).
+    """
+    env = budget.envelopes[min(max(budget_class, 0), budget.envelopes.shape[0] - 1)]
+    since = np.asarray(since_s, dtype=np.float64)
+    bins = np.clip(np.floor(since / budget.bin_s).astype(np.int64), 0, env.shape[0] - 1)
+    out: FloatArray = env[bins] + np.asarray(VELOCITY_ESTIMATE_TOLERANCE)[None, :]
+    return out
+
+
 def envelope_excess(
     budget: TransientBudget, budget_class: int, since_s: FloatArray, error: FloatArray
 ) -> FloatArray:
@@ -112,10 +143,7 @@ def envelope_excess(
         since_s: Time since the decision of each sample (s), shape (N,).
         error: nu_hat - nu_ref (surge m/s, sway m/s, yaw rad/s), shape (N, 3).
     """
-    env = budget.envelopes[min(max(budget_class, 0), budget.envelopes.shape[0] - 1)]
-    bins = np.clip(np.floor(since_s / budget.bin_s).astype(np.int64), 0, env.shape[0] - 1)
-    bound = env[bins] + np.asarray(VELOCITY_ESTIMATE_TOLERANCE)[None, :]
-    out: FloatArray = np.abs(error) - bound
+    out: FloatArray = np.abs(error) - envelope_bound(budget, budget_class, since_s)
     return out
 
 
@@ -333,8 +361,10 @@ def check_contract(intervals: Sequence[Interval]) -> Check:
 __all__ = [
     "EKF_STARTUP_S",
     "VELOCITY_ESTIMATE_TOLERANCE",
+    "budget_class",
     "check_contract",
     "contract_of",
+    "envelope_bound",
     "envelope_excess",
     "judge_intervals",
 ]

@@ -9,7 +9,11 @@ Two pictures per decision:
 - the winning set at the decision's heading cell: the controller is synthesized
   again for the layout in force at the decision (the same grid, tables and
   inflation as the run, :class:`hil.runtime.assembly.LayoutSolver`), and the
-  (nx, ny) slice of its value function V at that heading cell is kept.
+  (nx, ny) slice at that heading cell of its value function V with the decision's
+  reference in force (the game state is (cell, reference); a decision with no
+  recorded reference gets the layer from rest). A regular decision's recorded value is
+  the slice's value at its cell; a first decision's is not (it may choose a change
+  the layer does not allow, see ``Controller.decision_value``).
 
 Re-synthesis runs once per distinct layout, not per decision.
 """
@@ -101,15 +105,17 @@ class WinningSlice:
     Attributes:
         grid: The controller's grid.
         heading_cell: Heading cell k of the slice.
-        values: V[:, :, k], shape (nx, ny) indexed [i, j]: steps of tau to the
-            target, -1 outside the winning set.
+        values: V[:, :, k] with input `reference_index` in force, shape (nx, ny)
+            indexed [i, j]: steps of tau to the target, -1 outside the winning set.
         obstacles: Obstacle cells, shape (nx, ny) indexed [i, j].
+        reference_index: Input-grid index of the reference in force (the layer).
     """
 
     grid: Grid
     heading_cell: int
     values: I32Array
     obstacles: NDArray[np.bool_]
+    reference_index: int = -1
 
     @property
     def winning_cells(self) -> int:
@@ -138,10 +144,26 @@ def heading_cell(grid: Grid, decision: Decision) -> int | None:
     return None if cell is None else cell[2]
 
 
+def layer_slice(controller: Controller, reference: int, k: int) -> WinningSlice:
+    """Return the slice of V at heading cell `k` with input `reference` in force.
+
+    `reference` outside the input grid (-1: not recorded) gives the layer from rest.
+    """
+    g = controller.grid
+    if not 0 <= reference < len(controller.inputs):
+        reference = controller.rest_index
+    i, j = np.meshgrid(np.arange(g.nx), np.arange(g.ny), indexing="ij")
+    flat = controller.values_at(reference, i.ravel(), j.ravel(), np.full(i.size, k))
+    values = flat.reshape(g.nx, g.ny).astype(np.int32)
+    return WinningSlice(g, k, values, controller.obstacles, reference)
+
+
 def controller_view(
     run: RunData, scenario: Scenario, budget_s: float | None = None
 ) -> ControllerView:
     """Re-synthesize the run's controller per layout and slice V at each decision.
+
+    The slice is the layer of the decision's reference in force (:func:`layer_slice`).
 
     Args:
         run: The recorded run.
@@ -191,9 +213,7 @@ def controller_view(
         if controller is None or k is None:
             slices.append(None)
             continue
-        slices.append(
-            WinningSlice(controller.grid, k, controller.values[:, :, k], controller.obstacles)
-        )
+        slices.append(layer_slice(controller, decision.reference_index, k))
     if over_budget:
         notes.append(
             f"re-synthesis budget of {budget_s:g} s spent after {len(controllers)} layout(s): "

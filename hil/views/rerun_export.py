@@ -19,7 +19,7 @@ Entity paths mirror frames:
   estimated path, in the arena frame;
 - ``world/controller/{safe_inputs,chosen_input,winning_set}``: the controller's
   view at each decision;
-- ``plots/...``: velocity per axis, tracking error with the margin band,
+- ``plots/...``: velocity per axis, tracking error with the velocity envelope band,
   thrusters, azimuth angles, force, value, synthesis time; ``events``: faults.
 """
 
@@ -88,7 +88,7 @@ def log_run(
 ) -> int:
     """Log every stream of `run` (and `replayed` decisions beside) to `rec`; return the rows."""
     tau_s = scenario.tau_s if scenario is not None else 2.0
-    margin = scenario.margin.as_array() if scenario is not None else None
+    budget = scenario.transient if scenario is not None else None
     rows = log_styles(rec)
     rows += log_arena(rec, scenario)
     rows += log_obstacles(rec, run, scenario)
@@ -99,7 +99,7 @@ def log_run(
     if view is not None:
         rows += log_winning_set(rec, run, view)
     rows += log_velocity(rec, run)
-    rows += log_tracking_error(rec, run, margin)
+    rows += log_tracking_error(rec, run, budget)
     rows += log_thrusters(rec, run)
     rows += log_force(rec, run)
     rows += log_value(rec, run)
@@ -129,7 +129,7 @@ def write_rrd(
     Args:
         run: The recorded run.
         path: The ``.rrd`` file to write (replaced if it exists).
-        scenario: The run's scenario (arena, hull, tau, margin); None when unknown.
+        scenario: The run's scenario (arena, hull, tau, transient budget); None when unknown.
         view: The controller's view per decision; None to leave out the winning set.
         replayed: Decisions of a replay of the run, shown beside the recorded ones
             with their differences marked (``hil replay LOG --rerun``); None for none.

@@ -12,6 +12,7 @@ from hil.bag.run_data import Layout, synthesis_time
 from hil.core.records import Decision, Event, EventLevel
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
 from hil.core.tracking import tracking_error
+from hil.replay.intervals import budget_class, envelope_bound
 from hil.runtime.stack import RunLog
 from hil.scenarios import Scenario
 from hil.views.blueprint import blueprint
@@ -44,7 +45,7 @@ class LiveRerunLog:
 
     Args:
         rec: The recording stream (already spawned, connected or saving).
-        scenario: The run's scenario (arena, hull, tau, margin, inflation).
+        scenario: The run's scenario (arena, hull, tau, transient budget, inflation).
         inner: The log to forward to; None for none.
     """
 
@@ -54,7 +55,8 @@ class LiveRerunLog:
         self.rec = rec
         self.scenario = scenario
         self.inner = inner
-        self._margin = scenario.margin.as_array()
+        # The last two decisions (ns, budget class): the envelope of the one in force.
+        self._decided: list[tuple[int, int | None]] = []
         self._nu_ref: tuple[int, FloatArray] | None = None  # (stamp ns, (3,)) in force
         self._pending: tuple[int, FloatArray] | None = None  # estimate awaiting its error
         log_styles(rec)
@@ -137,11 +139,17 @@ class LiveRerunLog:
         if not len(joined):
             return
         self._at(t_ns)
+        bound = np.full(3, np.nan)
+        in_force = [d for d in self._decided if d[0] <= t_ns]
+        decided_ns, cls = in_force[-1] if in_force else (t_ns, None)
+        if cls is not None:
+            since = np.array([(t_ns - decided_ns) / 1e9])
+            bound = envelope_bound(self.scenario.transient, cls, since)[0]
         for k, (axis, _) in enumerate(AXES):
             error = float(joined.error[0, k])
             self.rec.log(f"plots/tracking_error/{axis}/error", rr.Scalars(error))
-            band = [float(self._margin[k]), -float(self._margin[k])]
-            self.rec.log(f"plots/tracking_error/{axis}/margin", rr.Scalars(band))
+            band = [float(bound[k]), -float(bound[k])]
+            self.rec.log(f"plots/tracking_error/{axis}/envelope", rr.Scalars(band))
 
     def force(self, t_ns: int, tau: FloatArray) -> None:
         """Plot the force demand."""
@@ -166,6 +174,7 @@ class LiveRerunLog:
         """Draw the safe inputs and the chosen one as arcs; plot the value."""
         if self.inner is not None:
             self.inner.decision(record)
+        self._decided = [*self._decided[-1:], (record.t_ns, budget_class(record))]
         self._at(record.t_ns)
         safe, chosen = decision_strips(record, self.scenario.tau_s)
         self.rec.log("world/controller/safe_inputs", rr.LineStrips3D(safe))

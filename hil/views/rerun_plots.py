@@ -2,8 +2,10 @@
 
 Velocity per axis (commanded and estimated), the tracking error of
 :mod:`hil.core.tracking` (SI, yaw rate in rad/s like the velocity plots) with
-the scenario's margin band, thruster commands and azimuth angles, the force
-demand, the value at each decision, synthesis times and the events.
+the velocity envelope replay judges it against (the transient budget's envelope of
+the class of the decision in force, at the time since it, plus the velocity
+estimate's tolerance), thruster commands and azimuth angles, the force demand, the
+value at each decision, synthesis times and the events.
 """
 
 from __future__ import annotations
@@ -15,6 +17,8 @@ import rerun as rr
 from numpy.typing import NDArray
 
 from hil.bag.run_data import RunData, Series
+from hil.core.transient import TransientBudget
+from hil.replay.intervals import budget_class, envelope_bound
 from hil.views.rerun_style import (
     AXES,
     LEVELS,
@@ -36,27 +40,52 @@ def log_velocity(rec: rr.RecordingStream, run: RunData) -> int:
     return rows
 
 
-def _margin_band(t_ns: NDArray[np.int64], margin: FloatArray, k: int) -> Series:
-    """Return the band +-margin[k] at the times `t_ns` (first and last suffice)."""
-    return Series(t_ns, np.tile([margin[k], -margin[k]], (len(t_ns), 1)))
+NS_PER_S = 1_000_000_000
 
 
-def log_tracking_error(rec: rr.RecordingStream, run: RunData, margin: FloatArray | None) -> int:
-    """Log the tracking error per axis (SI) with the scenario's margin band (+-margin).
+def envelope_band(run: RunData, budget: TransientBudget, t_ns: NDArray[np.int64]) -> FloatArray:
+    """Return the bound replay judges |nu_hat - nu_ref| against at each time, (N, 3).
+
+    The envelope of the class of the decision in force (hold, change, start) at the
+    time since it, plus the velocity estimate's tolerance
+    (:func:`hil.replay.intervals.envelope_bound`); NaN before the first decision and
+    where the decision in force chose no input.
+    """
+    times = np.asarray(t_ns, dtype=np.int64)
+    out: FloatArray = np.full((len(times), 3), np.nan)
+    decisions = run.decisions
+    if not decisions or not len(times):
+        return out
+    starts = np.array([d.t_ns for d in decisions], dtype=np.int64)
+    in_force = np.searchsorted(starts, times, side="right") - 1
+    for n, d in enumerate(decisions):
+        cls = budget_class(d)
+        mask = in_force == n
+        if cls is not None and mask.any():
+            out[mask] = envelope_bound(budget, cls, (times[mask] - d.t_ns) / NS_PER_S)
+    return out
+
+
+def log_tracking_error(
+    rec: rr.RecordingStream, run: RunData, budget: TransientBudget | None
+) -> int:
+    """Log the tracking error per axis (SI) with the velocity envelope band (+-bound).
 
     The error is :meth:`hil.bag.run_data.RunData.tracking_error`: each estimate
-    against the reference in force at its time, ``nu_hat - nu_ref``.
+    against the reference in force at its time, ``nu_hat - nu_ref``; the band is
+    :func:`envelope_band` at the same times (left out when `budget` is None).
     """
     tracking = run.tracking_error()
     error = Series(tracking.t_ns, tracking.error)
     if not len(error):
         return 0
+    bound = envelope_band(run, budget, error.t_ns) if budget is not None else None
     rows = 0
     for k, (axis, _) in enumerate(AXES):
         rows += send_scalars(rec, f"plots/tracking_error/{axis}/error", error, [k])
-        if margin is not None:
-            band = _margin_band(error.t_ns[[0, -1]], margin, k)
-            rows += send_scalars(rec, f"plots/tracking_error/{axis}/margin", band)
+        if bound is not None:
+            band = Series(error.t_ns, np.column_stack([bound[:, k], -bound[:, k]]))
+            rows += send_scalars(rec, f"plots/tracking_error/{axis}/envelope", band)
     return rows
 
 

@@ -85,7 +85,7 @@ def _series_styles() -> dict[str, tuple[tuple[str, ...], tuple[Color, ...]]]:
         out[f"plots/velocity/{axis}/commanded"] = ((f"commanded {label}",), (MAGENTA,))
         out[f"plots/velocity/{axis}/estimated"] = ((f"estimated {label}",), (BLUE,))
         out[f"plots/tracking_error/{axis}/error"] = ((f"error {label}",), (BLUE,))
-        out[f"plots/tracking_error/{axis}/margin"] = (("+margin", "-margin"), (RED, RED))
+        out[f"plots/tracking_error/{axis}/envelope"] = (("+envelope", "-envelope"), (RED, RED))
     out["plots/thrusters/commands"] = (("tunnel", "port", "starboard"), (ORANGE, RED, GREEN))
     out["plots/thrusters/azimuth_deg"] = (
         ("port angle (deg)", "starboard angle (deg)"),

@@ -10,6 +10,7 @@ import pytest
 from hil.core.records import Decision
 from hil.replay.controllers import ScenarioCache
 from hil.replay.decisions import consistency, is_cost_tie, recompute
+from hil.runs.sim_run import default_start
 from hil.runtime.assembly import layout_from_scenario
 from hil.scenarios import load_scenario
 
@@ -17,17 +18,27 @@ from hil.scenarios import load_scenario
 def test_recompute_mirrors_the_runtime_decision(caches: ScenarioCache) -> None:
     scenario = load_scenario("coarse")
     controller = caches.get(scenario)(layout_from_scenario(scenario))
-    start = np.array([3.75, -1.5, np.pi / 2])
-    got = recompute(controller, start, np.zeros(3))
+    start = np.array(default_start(scenario))
+    rest = controller.nearest_input(np.zeros(3))
+    got = recompute(controller, start, np.zeros(3), rest, True)  # a run's first decision
     assert got.winning
     assert got.value > 0
     assert got.chosen in got.safe
     assert len(got.safe) >= 1
-    in_target = recompute(controller, np.array([-2.75, 1.5, 0.0]), np.zeros(3))
+    # Every safe input is within one input-grid step per axis of the reference in force.
+    steps = np.array([0.05, 0.05, 0.1])
+    assert np.all(np.abs(controller.inputs[list(got.safe)]) <= steps + 1e-9)
+    # The next decision, the chosen input in force: a regular one, its own safe set.
+    on = recompute(controller, start, controller.inputs[got.chosen], got.chosen, False)
+    assert on.winning
+    assert on.chosen in on.safe
+    reach = np.abs(controller.inputs[list(on.safe)] - controller.inputs[got.chosen])
+    assert np.all(reach <= steps + 1e-9)
+    in_target = recompute(controller, np.array([-2.75, 1.5, 0.0]), np.zeros(3), rest, True)
     assert (in_target.value, in_target.safe, in_target.chosen) == (0.0, (), -1)
-    outside = recompute(controller, np.array([2.0, -1.5, 0.0]), np.zeros(3))  # inside O1
-    assert not outside.winning
-    assert outside.chosen == -1
+    inside = recompute(controller, np.array([-1.0, 1.5, 0.0]), np.zeros(3), rest, True)  # in O2
+    assert not inside.winning
+    assert inside.chosen == -1
 
 
 INPUTS = np.array([[0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.2, 0.0, 0.0], [0.1, 0.05, 0.0]])

@@ -39,7 +39,7 @@ def test_the_recording_has_the_arena_vessel_controller_and_plots(exported: Expor
         "/plots/velocity/surge/commanded",
         "/plots/velocity/yaw_rate/estimated",
         "/plots/tracking_error/sway/error",
-        "/plots/tracking_error/sway/margin",
+        "/plots/tracking_error/sway/envelope",
         "/plots/thrusters/commands",
         "/plots/thrusters/azimuth_deg",
         "/plots/value",
@@ -104,13 +104,20 @@ def test_winning_set_resynthesized_for_the_recorded_layout_matches_each_decision
 ) -> None:
     view = controller_view(exported.run, exported.scenario)
     assert view.note == ""
+    regular = 0
     for decision, slice_ in zip(exported.run.decisions, view.slices, strict=True):
         assert slice_ is not None, decision
         cell = slice_.grid.cell_of(decision.state)
         assert cell is not None, decision
         assert slice_.heading_cell == cell[2], decision
+        # The slice is the layer of the reference in force at the decision.
+        assert slice_.reference_index == decision.reference_index, decision
+        if decision.first or decision.value == 0.0:
+            continue  # a first decision's value is not its layer's (decision_value)
+        regular += 1
         got = float(slice_.values[cell[0], cell[1]])
         assert got == decision.value, (got, decision)
+    assert regular >= 3
 
 
 def test_winning_set_pixels_put_the_decision_cell_at_its_place(exported: Exported) -> None:

@@ -50,3 +50,11 @@ def test_live_log_streams_every_record_and_forwards_it(tmp_path: Path) -> None:
     assert t.tolist() == want_error.t_ns.tolist()
     got_error = np.array([first(e) for e in errors], dtype=np.float64)
     np.testing.assert_allclose(got_error, want_error.error[:, 2])
+    # Beside it, the envelope band of the decision in force: +-bound, from the first decision.
+    t, bands = column(store, "/plots/tracking_error/yaw_rate/envelope", "Scalars:scalars")
+    assert t.tolist() == want_error.t_ns.tolist()
+    band = np.array(bands, dtype=np.float64)
+    decided = t >= memory.decisions[0].t_ns
+    assert np.all(np.isnan(band[~decided]))
+    assert np.all(band[decided, 0] > 0.0)
+    np.testing.assert_allclose(band[decided, 1], -band[decided, 0])

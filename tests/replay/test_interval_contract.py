@@ -1,11 +1,9 @@
 """Replay holds every interval to its decision's contract; old logs are refused.
 
-A short run recorded on the fine-grid test scenario (:mod:`tests.runtime.monitor_scenario`)
-keeps its contracts when its velocity is judged against the measured budget (the test
-scenario's change envelopes are scaled down so that it has a winning set, and the real
-low level does not keep those); the same log with the estimates of one interval pushed
-out of the tube, or with a velocity beyond the envelope, FAILs naming the interval and
-the size.
+A short run recorded on the packaged coarse scenario (a winning set under its measured
+transient budget) keeps its contracts; the same log with the estimates of one interval
+pushed out of the tube, or with a velocity beyond the envelope, FAILs naming the interval
+and the size.
 """
 
 from __future__ import annotations
@@ -29,15 +27,13 @@ from hil.runs.sim_run import SimRunSpec, simulate
 from hil.runtime.settings import NS_PER_S, LoopConfig
 from hil.scenarios import load_scenario
 from tests.replay.suite_logs import rewrite
-from tests.runtime.monitor_scenario import fine_scenario
 
 
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory: pytest.TempPathFactory) -> Path:
     folder = tmp_path_factory.mktemp("contract")
-    scenario = fine_scenario(folder / "fine.toml")
     out = folder / "run"
-    simulate(SimRunSpec(scenario=str(scenario), seed=1, out_dir=out, cache_dir=folder / "t",
+    simulate(SimRunSpec(scenario="coarse", seed=1, out_dir=out, cache_dir=folder / "t",
                         loop=LoopConfig(resynthesis_period_s=None, max_duration_s=12.0)))
     return out
 
@@ -48,10 +44,9 @@ def cache() -> ScenarioCache:
 
 
 def _judge(run: RunData, cache: ScenarioCache) -> tuple[tuple[Interval, ...], Check]:
-    """Judge `run` with the packaged, measured velocity envelopes (same bins)."""
+    """Judge `run` against its scenario's measured transient budget."""
     scenario = resolve_scenario(run)
-    measured = replace(scenario, transient=load_scenario("coarse").transient)
-    intervals = judge_intervals(run, cache.get(scenario), measured, [])
+    intervals = judge_intervals(run, cache.get(scenario), scenario, [])
     return intervals, check_contract(intervals)
 
 
