@@ -33,7 +33,7 @@ def test_moved_layout_keeps_the_rest() -> None:
     assert moved.transient == s.transient
     with pytest.raises(ScenarioError, match="overlaps"):
         s.with_obstacles_moved(np.array([[-1.5, 0.0]]))  # onto the target
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="reshape"):
         s.with_obstacles_moved(np.array([[0.5, 0.0], [0.0, -0.25]]))  # one offset per obstacle
 
 
