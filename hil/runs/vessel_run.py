@@ -149,11 +149,17 @@ def run_on_ros(config: VesselConfig, out_dir: Path | None = None,
                                 ResynthesisMode.THREAD)
         # Compile and synthesize before the loop starts, so its first ticks keep time.
         progress("synthesizing the controller...")
-        warm_up_kernels(config.loop.loop_hz)
-        runtime.resynthesizer.submit(obstacles.latest())
-        runtime.resynthesizer.wait_idle()
+        # A signal while synthesizing (seconds) stops the run at its first tick, with
+        # the log closed, instead of killing the process with the bag open.
+        early: list[str] = []
+        with stop_on_signals(early.append):
+            warm_up_kernels(config.loop.loop_hz)
+            runtime.resynthesizer.submit(obstacles.latest())
+            runtime.resynthesizer.wait_idle()
         try:
-            stopped = _wait_for_pose(ros, config.ros.topics.pose, progress)
+            stopped = early[0] if early else _wait_for_pose(
+                ros, config.ros.topics.pose, progress
+            )
             if stopped is not None:
                 runtime.request_stop(f"{stopped} while waiting for pose")
             else:

@@ -61,7 +61,7 @@ max_duration_s = 120.0
 resynthesis_period_s = 20.0
 """)
     out = tmp_path / "run"
-    # Start below O2, heading west: a short slalom into the target.
+    # Start below O2, heading west (a winning start): along the bottom into the target.
     vessel = subprocess.Popen(
         [
             *HIL,
@@ -70,7 +70,7 @@ resynthesis_period_s = 20.0
             "--clock",
             "--speed",
             "2",
-            "--start=-0.3,-1.6,180",
+            "--start=0,-1,180",
             "--domain-id",
             str(domain),
             "--duration",
@@ -105,9 +105,10 @@ resynthesis_period_s = 20.0
         counts = {t.name: t.message_count for t in info.topics}
     assert counts["/hil/decision"] == summary["decisions"]
     # One clock: the bag spans the run and the poses recorded while the stack set up
-    # (synthesis; seconds of /clock at speed 2, more on a loaded CI machine), not the
-    # /clock time before the stack joined (that bug made a 42-s run span 151 s).
-    assert info.duration_ns / 1e9 < summary["duration_s"] + 30.0
+    # (synthesis, 5-40 s of /clock at speed 2 on a loaded CI machine), not the /clock
+    # time before the stack joined (that bug made a 42-s run span 151 s): at most the
+    # stack's own wall time at speed 2.
+    assert summary["duration_s"] < info.duration_ns / 1e9 < 2.0 * summary["wall_s"] + 5.0
     assert "waiting for pose on /voyager/measurement/pose" in stderr
     assert counts["/voyager/measurement/pose"] > 1000
     assert info.run is not None

@@ -103,11 +103,12 @@ def test_thruster_link_failure_is_logged_and_the_run_goes_on(cache_dir: Path) ->
 
 def test_moving_obstacle_triggers_resynthesis_and_stays_clear(cache_dir: Path) -> None:
     log = MemoryLog()
-    # O2 (upper wall) slides 0.3 m right over 6 s while the vessel approaches.
-    motion = ObstacleMotion(index=0, velocity_mps=(0.05, 0.0), start_s=4.0, stop_s=10.0)
+    # O2 slides 0.3 m right over 3 s while the vessel approaches below it: a layout
+    # a second, each re-synthesized (a new layout costs a full synthesis, so kept short).
+    motion = ObstacleMotion(index=0, velocity_mps=(0.1, 0.0), start_s=4.0, stop_s=7.0)
     summary = run_in_sim(_spec(cache_dir, seed=5, motions=(motion,)), log=log)
-    assert summary.resyntheses >= 6
-    assert len(log.layouts) >= 6
+    assert summary.resyntheses >= 3
+    assert len(log.layouts) >= 3
     assert summary.docked
     assert summary.hull_contacts == 0
 
@@ -142,12 +143,13 @@ def test_layout_without_solution_stops_the_vessel(cache_dir: Path) -> None:
 
 def test_start_outside_the_winning_set_stops_and_says_so(cache_dir: Path) -> None:
     log = MemoryLog()
-    # Inside O1's inflation band: not winning, so the vessel must not move off on its own.
+    # Inside O2's inflation band (hull clear of O2 itself): not winning, so the vessel
+    # must not move off on its own.
     summary = run_in_sim(
         _spec(
             cache_dir,
             seed=7,
-            start=(2.0, 0.3, 0.0),
+            start=(-0.4, 0.5, math.pi / 2),
             loop=LoopConfig(resynthesis_period_s=None, max_duration_s=10.0),
         ),
         log=log,
@@ -155,9 +157,9 @@ def test_start_outside_the_winning_set_stops_and_says_so(cache_dir: Path) -> Non
     assert not summary.docked
     assert summary.not_winning_decisions == 1
     assert log.event_codes()[-2:] == [EventCode.NOT_WINNING.value, EventCode.ABORTED.value]
-    assert summary.end_reason.startswith("start [2.0")
+    assert summary.end_reason.startswith("start [-0.4")
     assert "outside the winning set" in summary.end_reason
-    # Stopped at the first decision, not at the 10-s limit.
-    assert log.events[-1][0] < 1_000_000_000
+    # Stopped at the first decision (once the observer settled), not at the 10-s limit.
+    assert log.events[-1][0] < round((LOOP.observer_settle_s + 0.1) * 1e9)
     assert all(np.all(nu == 0.0) for _, nu in log.velocity_references)
     assert math.isfinite(summary.min_clearance_m)

@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hil.adapters.sim import SimConfig, SimWorld
+from hil.controllers.symbolic import DecisionContract
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample
 from hil.runtime.assembly import low_level_for
 from hil.runtime.loop import Runtime, World
@@ -50,15 +51,25 @@ class ScriptedController:
         """Every state is in cell 0."""
         return 0
 
-    def value(self, state: F) -> float:
+    def nearest_input(self, velocity: F) -> int:
+        """The run starts at rest on row 0's side of the script."""
+        return 0
+
+    def value(self, state: F, reference: int, first: bool) -> float:
         """One step from the target everywhere, so the loop keeps running."""
         return 1.0
 
-    def safe_input_indices(self, state: F) -> I64:
+    def safe_input_indices(self, state: F, reference: int, first: bool) -> I64:
         """Return the next row of the script."""
         i = self.decisions
         self.decisions += 1
         return np.array([i], dtype=np.int64)
+
+    def contract(
+        self, state: F, chosen: int, reference: int, first: bool
+    ) -> DecisionContract | None:
+        """Promise nothing: the runtime monitor judges no tick (no symbolic abstraction)."""
+        return None
 
 
 class TrueVelocity:
@@ -89,7 +100,11 @@ def run_runtime(refs: F) -> tuple[MemoryLog, SimWorld, ScriptedController]:
         return controller
 
     # Stop at the tick that would start decision len(refs) (ticks every 50 ms).
-    loop = LoopConfig(resynthesis_period_s=None, max_duration_s=2.0 * len(refs) - 0.025)
+    # The observer is exact (no filter to settle): decide at the first tick, as the
+    # compiled loop does.
+    loop = LoopConfig(
+        resynthesis_period_s=None, max_duration_s=2.0 * len(refs) - 0.025, observer_settle_s=0.0
+    )
     log = MemoryLog()
     runtime = Runtime(
         World(world.clock, world.pose, world.imu, world.obstacles, world.thrusters),

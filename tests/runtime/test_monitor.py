@@ -1,7 +1,7 @@
 """The runtime monitor: the estimate held to the decision in force, and the loop's reaction.
 
-A simulated run on a scenario with a winning set under a non-zero budget
-(:mod:`tests.runtime.monitor_scenario`) keeps every contract: no monitor event. The
+A simulated run on the packaged coarse scenario (a winning set under its measured
+transient budget) keeps every contract: no monitor event. The
 same run with the observer's estimate pushed sideways mid-interval leaves the tube:
 a TUBE_EXIT event with the distance the contract's own judge measures, and a first
 decision at that very tick; pushed into an obstacle, the re-decision finds nothing
@@ -33,7 +33,6 @@ from hil.runtime.settings import NS_PER_S, LoopConfig
 from hil.runtime.trace import MemoryLog
 from hil.scenarios import Scenario, load_scenario
 from hil.sim.plant import TR_ETA
-from tests.runtime.monitor_scenario import fine_scenario
 
 FloatArray = NDArray[np.float64]
 Shift = Callable[[int, FloatArray], FloatArray]
@@ -44,7 +43,7 @@ MONITOR_CODES = {"tube_exit", "successor_miss", "value_not_decreasing"}
 @pytest.fixture(scope="module")
 def setup(tmp_path_factory: pytest.TempPathFactory) -> tuple[Scenario, SymbolicAdapter, Path]:
     folder = tmp_path_factory.mktemp("monitor")
-    scenario = load_scenario(str(fine_scenario(folder / "fine.toml")))
+    scenario = load_scenario("coarse")
     synthesizer = synthesizer_for(scenario, folder / "tables")
     adapter = LayoutSolver(scenario, synthesizer)(layout_from_scenario(scenario))
     return scenario, adapter, folder
@@ -117,14 +116,14 @@ def test_an_estimate_pushed_out_of_the_tube_is_reported_and_redecided(
     setup: tuple[Scenario, SymbolicAdapter, Path],
 ) -> None:
     scenario, adapter, _ = setup
-    at_ns = 5 * NS_PER_S  # 0.95 s into the interval decided at 4.05 s
+    at_ns = 6 * NS_PER_S  # 0.95 s into the interval decided at 5.05 s (after 1 s settling)
 
     def push(t_ns: int, eta: FloatArray) -> FloatArray:
         if t_ns >= at_ns:
             eta[0] -= 0.6
         return eta
 
-    runtime, log, _ = _run(setup, 8.0, push)
+    runtime, log, _ = _run(setup, 10.0, push)
     exits = [e for e in log.events if e[2] == "tube_exit"]
     assert len(exits) == 1
     t_ns, level, _, text = exits[0]
@@ -132,8 +131,9 @@ def test_an_estimate_pushed_out_of_the_tube_is_reported_and_redecided(
     assert at_ns <= t_ns <= at_ns + 60_000_000  # the first tick that sees the push
     # The size is what the decision's contract measures for the recorded estimate.
     before = [d for d in log.decisions if d.t_ns < t_ns][-1]
-    assert before.t_ns == 4_050_000_000
-    assert "decision at t=4.050 s" in text
+    assert before.t_ns == 5_050_000_000
+    assert not before.first  # a regular decision (a start counts two first ones)
+    assert "decision at t=5.050 s" in text
     contract = DecisionContract.of(
         adapter.controller,
         adapter.controller.grid.cell_of(before.state),  # type: ignore[arg-type]
@@ -161,10 +161,10 @@ def test_an_estimate_pushed_out_of_the_tube_is_reported_and_redecided(
 def test_a_tube_exit_into_an_obstacle_stops_the_vessel(
     setup: tuple[Scenario, SymbolicAdapter, Path],
 ) -> None:
-    at_ns = 3 * NS_PER_S
+    at_ns = 2 * NS_PER_S  # mid-interval of the first decision (1.05 s, after settling)
 
     def jump(t_ns: int, eta: FloatArray) -> FloatArray:
-        return np.array([2.0, -1.5, eta[2]]) if t_ns >= at_ns else eta  # inside O1
+        return np.array([-1.0, 1.5, eta[2]]) if t_ns >= at_ns else eta  # inside O2
 
     runtime, log, _ = _run(setup, 10.0, jump)
     codes = log.event_codes()

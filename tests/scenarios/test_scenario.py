@@ -24,19 +24,23 @@ def test_hull_clearance_closed_form() -> None:
 
 def test_moved_layout_keeps_the_rest() -> None:
     s = load_scenario("coarse")
-    moved = s.with_obstacles_moved(np.array([[0.5, 0.0], [0.0, -0.25]]))
-    assert moved.obstacles[0].shape == Rect(2.25, 2.75, -3.0, 0.0)
-    assert moved.obstacles[1].shape == Rect(-1.25, -0.75, -0.25, 2.75)
+    moved = s.with_obstacles_moved(np.array([[0.5, -0.25]]))
+    assert len(moved.obstacles) == 1
+    assert moved.obstacles[0].name == s.obstacles[0].name
+    assert moved.obstacles[0].shape == Rect(-0.75, -0.25, -0.25, 2.75)
     assert moved.target == s.target
     assert moved.cell_m == s.cell_m
+    assert moved.transient == s.transient
     with pytest.raises(ScenarioError, match="overlaps"):
-        s.with_obstacles_moved(np.array([[0.0, 0.0], [-1.5, 0.0]]))
+        s.with_obstacles_moved(np.array([[-1.5, 0.0]]))  # onto the target
+    with pytest.raises(ValueError, match="reshape"):
+        s.with_obstacles_moved(np.array([[0.5, 0.0], [0.0, -0.25]]))  # one offset per obstacle
 
 
 def test_digest_follows_the_content() -> None:
     s = load_scenario("coarse")
     assert s.digest() == load_scenario("coarse").digest()
-    assert s.digest() != s.with_obstacles_moved(np.array([[0.1, 0.0], [0.0, 0.0]])).digest()
+    assert s.digest() != s.with_obstacles_moved(np.array([[0.1, 0.0]])).digest()
 
 
 def test_with_transient_replaces_the_budget_and_the_digest() -> None:
