@@ -74,7 +74,7 @@ def test_successor_run_matches_numpy() -> None:
         oy0 = int(rng.integers(-6, 7))
         n = int(rng.integers(1, 9))
         got = _bits(np.array([successor_run(W, u, x, kp0, kp1, wp, oy0, n)], dtype=np.uint64))
-        rows = cells[u, x, kp0 : kp1 + 1].all(axis=0)
+        rows: NDArray[np.bool_] = np.asarray(cells[u, x, kp0 : kp1 + 1].all(axis=0))
         base = 64 * wp + oy0
         expected = np.array([rows[base + b : base + b + n].all() for b in range(64)])
         np.testing.assert_array_equal(got, expected, err_msg=f"{(u, x, kp0, kp1, wp, oy0, n)}")
