@@ -25,7 +25,7 @@ def test_synth_prints_a_report_and_json(tmp_path: Path, capsys: pytest.CaptureFi
             "--cache-dir",
             str(tmp_path),
             "--repeat",
-            "2",
+            "1",
         ]
     )
     out = capsys.readouterr().out.strip().splitlines()
@@ -40,12 +40,14 @@ def test_synth_prints_a_report_and_json(tmp_path: Path, capsys: pytest.CaptureFi
         "grid_cells",
     ):
         assert key in summary
-    assert summary["grid"] == [40, 30, 24]
-    assert summary["grid_cells"] == 40 * 30 * 24
-    # The tracking-error margin costs the cells that touch walls and obstacles.
-    assert 0.7 < summary["winning_fraction"] < 1.0  # 0.2-m cells: the ring is a large share
+    assert summary["grid"] == [90, 100, 60]
+    assert summary["grid_cells"] == 90 * 100 * 60
+    # From rest, of the cells the hull fits in: the corridor right of O2 is too narrow to
+    # turn in, and the deviation budget costs a band along walls and the obstacle.
+    assert 0.5 < summary["winning_fraction"] < 0.9
     assert summary["iterations"] > 10
-    assert 0.0 < summary["peak_memory_mb"] < 100.0
+    # 175 layers of winning bits, values and tubes on 540 000 cells.
+    assert 0.0 < summary["peak_memory_mb"] < 600.0
     assert any(line.startswith("winning") for line in out[:-1])
     assert Controller.load(saved).stats.winning_cells == summary["winning_cells"]
     # Second run: tables come from the cache.

@@ -78,8 +78,8 @@ def test_scenario_without_margin_says_how(
 def test_scenario_with_an_obstacle_outside_the_arena(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    path = _scenario(tmp_path, 'x_m = [1.75, 2.25]', 'x_m = [4.25, 5.25]')
-    _fails_with(["run", path, "--no-record"], capsys, "'O1'", "outside the arena")
+    path = _scenario(tmp_path, 'x_m = [-1.25, -0.75]', 'x_m = [1.25, 1.75]')
+    _fails_with(["run", path, "--no-record"], capsys, "'O2'", "outside the arena")
 
 
 def test_vessel_config_with_a_bad_topic(
@@ -132,8 +132,12 @@ def _env() -> dict[str, str]:
 
 
 def test_synth_on_a_grid_too_big_for_memory() -> None:
-    # 40 000 x 30 000 x 24 cells: far beyond the 4 GiB address space allowed below.
-    huge = COARSE.replace("cell_m = [0.2, 0.2]", "cell_m = [0.0002, 0.0002]")
+    # 450 x 500 x 120 cells, 175 layers: beyond the 4 GiB address space allowed below
+    # (1-cm cells: the successor boxes still fit the kernel).
+    huge = COARSE.replace("cell_m = [0.05, 0.05]", "cell_m = [0.01, 0.01]").replace(
+        "heading_cells = 60", "heading_cells = 120"
+    )
+    assert huge != COARSE
     limit = 4 << 30
 
     def cap() -> None:
@@ -149,6 +153,19 @@ def test_synth_on_a_grid_too_big_for_memory() -> None:
     last = proc.stderr.strip().splitlines()[-1]
     assert "not enough memory" in last
     assert "cell_m" in last
+
+
+def test_synth_on_a_grid_too_fine_for_the_budget() -> None:
+    # 0.2-mm cells: a successor box spans hundreds of cells, which the kernel refuses.
+    fine = COARSE.replace("cell_m = [0.05, 0.05]", "cell_m = [0.0002, 0.0002]")
+    proc = subprocess.run(
+        [sys.executable, "-m", "hil", "synth", "/dev/stdin", "--no-cache", "--repeat", "1"],
+        input=fine, capture_output=True, text=True, env=_env(), timeout=300, check=False,
+    )
+    assert proc.returncode == 2, proc.stderr[-2000:]
+    assert "Traceback" not in proc.stderr
+    last = proc.stderr.strip().splitlines()[-1]
+    assert "too fine" in last and "cell_m" in last
 
 
 def test_info_into_a_closed_pipe_is_quiet() -> None:

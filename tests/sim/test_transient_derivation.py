@@ -132,9 +132,10 @@ def test_periods_are_classified_by_the_previous_reference() -> None:
     z = np.zeros(3)
     steps = np.full(4, 200, dtype=np.int64)
     rest = Run("walk", refs, steps, z, z, z, 0)
-    assert classify(rest).tolist() == [2, 1, 0, 1]
+    # A start counts START_PERIODS (2) periods, whatever their references do.
+    assert classify(rest).tolist() == [2, 2, 0, 1]
     moving = Run("start", refs[1:], steps[1:], z, np.array([0.01, 0.0, 0.0]), z, 0)
-    assert classify(moving).tolist() == [2, 0, 1]
+    assert classify(moving).tolist() == [2, 2, 1]
     np.testing.assert_array_equal(rest.starts(), [0, 200, 400, 600])
     assert rest.step_refs().shape == (800, 3)
 
@@ -181,7 +182,8 @@ def _deviations(run: Run) -> list[tuple[int, F, F, F]]:
     out = []
     begin = 0
     for n, (u, length) in enumerate(zip(run.refs, run.steps, strict=True)):
-        cls = 2 if n == 0 else (0 if np.array_equal(u, run.refs[n - 1]) else 1)
+        # The first two periods are a start (START_PERIODS in hil.core.transient).
+        cls = 2 if n < 2 else (0 if np.array_equal(u, run.refs[n - 1]) else 1)
         last = min(begin + int(length), res.t_s.size - 1)  # the closing sample, if recorded
         t: F = np.arange(last + 1 - begin, dtype=np.float64) * DT
         pbar, psibar = _arc(res.eta[begin], u, t)

@@ -139,7 +139,10 @@ class Synthesizer:
             [reach_x + 1, int(np.abs(hd).max()), 2 + max_oy // 64], dtype=np.int32
         )
         if int((succ[..., 3] - succ[..., 2]).max()) >= 64:
-            raise GridError("successor boxes longer than 64 cells along y are not supported")
+            raise GridError(
+                "successor boxes span more than 64 cells along y: the grid is too fine for "
+                "the deviation budget; use a coarser [grid] cell_m"
+            )
         self._f_layers = int((tables.tube_y[..., 1] - tables.tube_y[..., 0]).max()) + 1
         ranges = tables.hull_range_index().ravel()  # flat (c, k, u) -> range
         self._order = np.ascontiguousarray(np.argsort(ranges, kind="stable").astype(np.int32))
