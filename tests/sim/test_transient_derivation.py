@@ -257,3 +257,11 @@ def test_packaged_scenarios_ship_the_budget_the_low_level_achieves(name: str) ->
     assert derived.ratios.worst < 1.0 / 1.25 + 1e-9
     assert np.all(derived.measured.periods > 5000)
     assert math.isclose(derived.measured.simulated_s, 58_500.0, rel_tol=0.05)
+
+
+def test_the_estimation_bound_covers_what_the_runtime_decides_on() -> None:
+    # The runtime's first decision waits observer_settle_s for the EKF: the derivation must
+    # count the filter's errors from then on, not later.
+    from hil.runtime.settings import LoopConfig
+
+    assert TransientRecipe().estimation_after_s == LoopConfig().observer_settle_s
