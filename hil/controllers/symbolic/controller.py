@@ -12,7 +12,6 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 from dataclasses import asdict, dataclass
-from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -105,7 +104,10 @@ class Controller:
         self._out = np.empty(tables.n_inputs, dtype=np.int32)
         self._best = np.empty(1, dtype=np.int32)
         self.rest_index = lattice.nearest(np.zeros(3))
-        winning_rest = int(np.count_nonzero(self.layer_values(self.rest_index) >= 0))
+        rest_values = self.layer_values(self.rest_index)
+        rest_values.flags.writeable = False
+        self._rest_values = rest_values
+        winning_rest = int(np.count_nonzero(rest_values >= 0))
         self.stats = SynthesisStats(
             stats.levels,
             stats.seconds,
@@ -138,12 +140,10 @@ class Controller:
         """Return all inputs, shape (m, 3)."""
         return self._tables.inputs
 
-    @cached_property
+    @property
     def values(self) -> I32Array:
         """Return V from rest (reference zero in force), shape (nx, ny, npsi); -1 losing."""
-        out = self.layer_values(self.rest_index)
-        out.flags.writeable = False
-        return out
+        return self._rest_values
 
     def layer_values(self, previous: int) -> I32Array:
         """Return V with reference `previous` in force, shape (nx, ny, npsi); -1 losing."""
