@@ -144,15 +144,40 @@ def _set(bits: U64Array, u: int, r: int) -> None:
     bits[u, r >> 6] |= _ONE << np.uint64(r & 63)
 
 
+_DEBRUIJN = np.uint64(0x03F79D71B4CB0A89)
+
+
+def _debruijn_table() -> NDArray[np.int64]:
+    """Return the de Bruijn bit-index table: entry (2**b * _DEBRUIJN mod 2**64) >> 58 is b."""
+    table = np.zeros(64, dtype=np.int64)
+    for b in range(64):
+        table[((1 << b) * 0x03F79D71B4CB0A89 & (2**64 - 1)) >> 58] = b
+    return table
+
+
+_BIT_OF = _debruijn_table()
+"""Index of the single set bit of a word from the top 6 bits of its product with _DEBRUIJN."""
+
+
 @njit
 def _low_index(low: np.uint64) -> int:
-    """Return the index of the single set bit of `low`."""
-    b = 0
-    t = low
-    while t > _ONE:
-        t >>= _ONE
-        b += 1
-    return b
+    """Return the index of the single set bit of `low` (a de Bruijn multiply, no loop)."""
+    return int(_BIT_OF[(low * _DEBRUIJN) >> np.uint64(58)])
+
+
+@njit
+def _row_cells(nx: int, npsi: int) -> tuple[I32Array, I32Array]:
+    """Return (i, k) of every row r = i * npsi + k, each shape (nx * npsi,).
+
+    Tables, not r // npsi and r % npsi: an integer division per visited row was a
+    measurable share of the sweep.
+    """
+    row_i = np.empty(nx * npsi, dtype=np.int32)
+    row_k = np.empty(nx * npsi, dtype=np.int32)
+    for r in range(nx * npsi):
+        row_i[r] = r // npsi
+        row_k[r] = r % npsi
+    return row_i, row_k
 
 
 @njit
@@ -248,7 +273,6 @@ def _check(
 @njit
 def _sweep_layer(
     u: int,
-    npsi: int,
     px: int,
     ph: int,
     pw: int,
@@ -263,6 +287,8 @@ def _sweep_layer(
     newA: U64Array,
     newB: U64Array,
     kill: U8Array,
+    row_i: I32Array,
+    row_k: I32Array,
 ) -> None:
     """Compute the states of the rows marked in umask[u] that join A_u and B_u next level.
 
@@ -282,8 +308,8 @@ def _sweep_layer(
             low = bits & (~bits + _ONE)
             bits ^= low
             r = 64 * rw + _low_index(low)
-            k = r % npsi
-            i = r // npsi
+            k = row_k[r]
+            i = row_i[r]
             ip = px + i
             kp = ph + k
             box_a = succ[0, k, u]
@@ -330,6 +356,8 @@ def _apply_layer(
     newA: U64Array,
     newB: U64Array,
     chmask: U64Array,
+    row_i: I32Array,
+    row_k: I32Array,
 ) -> int:
     """Join A_p and the neighbours' B_u into layer p at `level`; return the rows changed.
 
@@ -354,8 +382,8 @@ def _apply_layer(
             rows ^= low
             b = _low_index(low)
             r = 64 * rw + b
-            k = r % npsi
-            i = r // npsi
+            k = row_k[r]
+            i = row_i[r]
             ip = px + i
             kp = ph + k
             changed = False
@@ -394,6 +422,8 @@ def _activate_layer(
     h_reach: I32Array,
     chmask: U64Array,
     umask: U64Array,
+    row_i: I32Array,
+    row_k: I32Array,
 ) -> int:
     """Mark in umask[u] the rows whose successor boxes reach a row changed in chmask[u].
 
@@ -409,8 +439,8 @@ def _activate_layer(
             bits ^= low
             r = 64 * rw + _low_index(low)
             n += 1
-            k1 = r % npsi
-            i1 = r // npsi
+            k1 = row_k[r]
+            i1 = row_i[r]
             for ok in range(h_reach[u, 0], h_reach[u, 1] + 1):
                 k0 = k1 - ok
                 while k0 < 0:
@@ -457,29 +487,30 @@ def fixed_point_serial(
     npsi = planes.shape[2]
     px, ph, pw = pads[0], pads[1], pads[2]
     max_level = (1 << planes.shape[4]) - 1
+    row_i, row_k = _row_cells(nx, npsi)
     level = 0
     n_changed = 0
     for u in range(m):
-        n_changed += _activate_layer(u, nx, npsi, reach, h_reach, chmask, umask)
+        n_changed += _activate_layer(u, nx, npsi, reach, h_reach, chmask, umask, row_i, row_k)
     while n_changed > 0:
         if level + 1 > max_level:
             return -1
         for u in range(m):
             _sweep_layer(
-                u, npsi, px, ph, pw, W, Bset, viable, succ, heading, umask, hasA, hasB,
-                newA, newB, kill,
+                u, px, ph, pw, W, Bset, viable, succ, heading, umask, hasA, hasB,
+                newA, newB, kill, row_i, row_k,
             )  # fmt: skip
         n_changed = 0
         for p in range(m):
             n_changed += _apply_layer(
                 p, level + 1, npsi, px, ph, pw, W, Bset, planes, nbr, nbr_n, hasA, hasB,
-                newA, newB, chmask,
+                newA, newB, chmask, row_i, row_k,
             )  # fmt: skip
         if n_changed == 0:
             break
         level += 1
         for u in range(m):
-            _activate_layer(u, nx, npsi, reach, h_reach, chmask, umask)
+            _activate_layer(u, nx, npsi, reach, h_reach, chmask, umask, row_i, row_k)
     return level
 
 
@@ -515,27 +546,28 @@ def fixed_point_parallel(
     px, ph, pw = pads[0], pads[1], pads[2]
     max_level = (1 << planes.shape[4]) - 1
     counts = np.zeros(m, dtype=np.int64)
+    row_i, row_k = _row_cells(nx, npsi)
     level = 0
     for u in prange(m):
-        counts[u] = _activate_layer(u, nx, npsi, reach, h_reach, chmask, umask)
+        counts[u] = _activate_layer(u, nx, npsi, reach, h_reach, chmask, umask, row_i, row_k)
     n_changed = counts.sum()
     while n_changed > 0:
         if level + 1 > max_level:
             return -1
         for u in prange(m):
             _sweep_layer(
-                u, npsi, px, ph, pw, W, Bset, viable, succ, heading, umask, hasA, hasB,
-                newA, newB, kill,
+                u, px, ph, pw, W, Bset, viable, succ, heading, umask, hasA, hasB,
+                newA, newB, kill, row_i, row_k,
             )  # fmt: skip
         for p in prange(m):
             counts[p] = _apply_layer(
                 p, level + 1, npsi, px, ph, pw, W, Bset, planes, nbr, nbr_n, hasA, hasB,
-                newA, newB, chmask,
+                newA, newB, chmask, row_i, row_k,
             )  # fmt: skip
         n_changed = counts.sum()
         if n_changed == 0:
             break
         level += 1
         for u in prange(m):
-            _activate_layer(u, nx, npsi, reach, h_reach, chmask, umask)
+            _activate_layer(u, nx, npsi, reach, h_reach, chmask, umask, row_i, row_k)
     return level
