@@ -1,7 +1,7 @@
 """Read a scenario from parsed TOML: every key checked, every message naming it.
 
 Keys and types are checked by :mod:`hil.core.config` (the tables that are one
-dataclass, ``margin`` and ``hull``, by :func:`~hil.core.config.from_table`); this
+dataclass, ``hull``, by :func:`~hil.core.config.from_table`); this
 module adds what only a scenario knows: cells dividing the arena, input grids,
 heading cells dividing the circle, plausible units, shapes told apart by their
 keys, a ``[transient]`` budget whose bins cover a period held late (missing: the paper's
@@ -31,7 +31,6 @@ from hil.scenarios.scenario import (
     Obstacle,
     Scenario,
     Target,
-    TrackingMargin,
     check_geometry,
     check_sets,
     check_transient,
@@ -48,7 +47,6 @@ _TOP_KEYS = {
     "grid",
     "inputs",
     "timing",
-    "margin",
     "transient",
     "hull",
     "abstraction",
@@ -153,29 +151,11 @@ def _heading_cells(grid: dict[str, Any]) -> int:
     return round(2.0 * math.pi / width)
 
 
-_NO_MARGIN_HINT = (
-    "add a [margin] table with surge_mps, sway_mps and yaw_rate_radps (measure them with "
-    "`python3 tools/dev.py bench lowlevel`), or write `[margin]` and `none = true` to "
-    "synthesize without one, as the paper does"
+_RETIRED_MARGIN = (
+    "table 'margin' was retired: the constant tracking-error margin was replaced by the "
+    "[transient] deviation budget; delete [margin] and copy the [transient] table that "
+    "`python3 tools/dev.py bench lowlevel` prints"
 )
-
-
-def _margin(data: dict[str, Any]) -> TrackingMargin:
-    """Read `[margin]`; a missing table is an error, `none = true` an explicit zero margin."""
-    if "margin" not in data:
-        raise ScenarioError(f"missing key 'margin': {_NO_MARGIN_HINT}")
-    raw = dict(table(data, "margin"))
-    none = raw.pop("none", False)
-    if not isinstance(none, bool):
-        raise ScenarioError(f"key margin.'none' must be true or false, got {none!r}")
-    if none:
-        bounds = sorted(k for k in raw if k != "source")
-        if bounds:
-            raise ScenarioError(f"key margin.'none' = true contradicts margin keys {bounds!r}")
-        return TrackingMargin(source=str(raw.get("source", "none: [margin] none = true")))
-    if not raw:
-        raise ScenarioError(f"key 'margin' is empty: {_NO_MARGIN_HINT}")
-    return from_table(TrackingMargin, raw, "margin.", note=_UNITS)
 
 
 _ENVELOPE_AXES = ("surge_mps", "sway_mps", "yaw_rate_radps")
@@ -266,6 +246,8 @@ def _per_bin(raw: dict[str, Any], key: str, where: str, n_bins: int) -> tuple[fl
 
 
 def _parse(data: dict[str, Any], default_name: str) -> Scenario:
+    if "margin" in data:
+        raise ScenarioError(_RETIRED_MARGIN)
     _keys(data, _TOP_KEYS, "")
     state = table(data, "state")
     _keys(state, {"x_m", "y_m"}, "state.")
@@ -304,15 +286,6 @@ def _parse(data: dict[str, Any], default_name: str) -> Scenario:
         raise ScenarioError(
             f"key timing.'tau_s' = {tau!r} must be in (0, 60] s (milliseconds given?)"
         )
-
-    margin = _margin(data)
-    for key, value in (
-        ("surge_mps", margin.surge_mps),
-        ("sway_mps", margin.sway_mps),
-        ("yaw_rate_radps", margin.yaw_rate_radps),
-    ):
-        if value < 0.0:
-            raise ScenarioError(f"key margin.{key!r} must be >= 0, got {value!r}")
 
     transient = _transient(data, tau)
 
@@ -358,7 +331,6 @@ def _parse(data: dict[str, Any], default_name: str) -> Scenario:
         sway=sway,
         yaw_rate=yaw,
         tau_s=tau,
-        margin=margin,
         transient=transient,
         hull=hull,
         obstacles=tuple(obstacles),

@@ -29,7 +29,6 @@ __all__ = [
     "Obstacle",
     "Scenario",
     "Target",
-    "TrackingMargin",
     "check_geometry",
     "check_sets",
     "check_transient",
@@ -50,27 +49,6 @@ class InputAxis:
         """Return the grid values, shape (n,)."""
         n = round((self.max - self.min) / self.step) + 1
         return self.min + self.step * np.arange(n, dtype=np.float64)
-
-
-@dataclass(frozen=True, slots=True)
-class TrackingMargin:
-    """Bound on |nu - nu_ref| per axis that the low-level loop guarantees.
-
-    Attributes:
-        surge_mps: Surge bound (m/s).
-        sway_mps: Sway bound (m/s).
-        yaw_rate_radps: Yaw-rate bound (rad/s).
-        source: Where the numbers come from.
-    """
-
-    surge_mps: float = 0.0
-    sway_mps: float = 0.0
-    yaw_rate_radps: float = 0.0
-    source: str = ""
-
-    def as_array(self) -> FloatArray:
-        """Return (surge, sway, yaw rate) as shape (3,)."""
-        return np.array([self.surge_mps, self.sway_mps, self.yaw_rate_radps])
 
 
 @dataclass(frozen=True, slots=True)
@@ -119,7 +97,7 @@ def hull_footprint(hull: Hull, x_m: float, y_m: float, psi_rad: float) -> Polygo
 
 @dataclass(frozen=True, slots=True)
 class Scenario:
-    """One docking problem: arena, grid, inputs, timing, margins, hull and sets.
+    """One docking problem: arena, grid, inputs, timing, budget, hull and sets.
 
     Attributes:
         name: Short name.
@@ -132,8 +110,6 @@ class Scenario:
         sway: Sway input grid (m/s).
         yaw_rate: Yaw-rate input grid (rad/s).
         tau_s: Sampling time of the abstraction (s).
-        margin: Tracking-error margin per axis (the constant margin after settling; being
-            replaced by `transient`).
         transient: Time-resolved bounds on the deviation from the exact arc (and the
             velocity error) per period class, and the EKF's pose error
             (:class:`~hil.core.transient.TransientBudget`); its bins cover `tau_s` +
@@ -153,7 +129,6 @@ class Scenario:
     sway: InputAxis
     yaw_rate: InputAxis
     tau_s: float
-    margin: TrackingMargin
     transient: TransientBudget
     hull: Hull
     obstacles: tuple[Obstacle, ...]
@@ -201,10 +176,6 @@ class Scenario:
                 for o, d in zip(self.obstacles, offsets, strict=True)
             )
         )
-
-    def with_margin(self, margin: TrackingMargin) -> Scenario:
-        """Return the same scenario with another tracking-error margin."""
-        return replace(self, margin=margin)
 
     def with_transient(self, budget: TransientBudget) -> Scenario:
         """Return the same scenario with another transient budget.

@@ -49,16 +49,13 @@ def _edit(path: list[str], value: Any) -> dict[str, Any]:
         ),
         (["timing", "tau_s"], 2000.0, r"timing.'tau_s' = 2000.0 .*milliseconds given"),
         (["timing", "tau_ms"], 2000, r"unknown key timing.'tau_ms'"),
-        (["margin", "surge_mps"], -0.01, r"margin.'surge_mps' must be >= 0"),
         (["obstacles", "1", "x_m"], [-3.0, -2.5], r"'target' .* overlaps obstacles\[1\] \('O2'\)"),
         (["abstraction", "target_deflation_m"], 0.8, r"'target' is empty after deflation by 0.8"),
         (["target", "x_m"], [10.0, 11.0], r"'target' .* lies outside the state bounds"),
         (["obstacles"], {"x_m": 1}, r"'obstacles' must be an array of tables"),
         (["hull", "length_m"], -1.0, r"'hull' must have positive sizes"),
-        (["margin"], KeyError, r"missing key 'margin': .*`none = true`"),
-        (["margin"], {}, r"key 'margin' is empty: .*`none = true`"),
-        (["margin"], {"none": True, "sway_mps": 0.1}, r"'none' = true contradicts .*sway_mps"),
-        (["margin"], {"none": "yes"}, r"margin.'none' must be true or false, got 'yes'"),
+        (["margin"], {"none": True}, r"'margin' was retired: .*\[transient\].*bench lowlevel"),
+        (["margin"], {"surge_mps": 0.01}, r"'margin' was retired"),
         (["obstacles", "0", "x_m"], [4.0, 5.0], r"obstacles\[0\] \('O1'\) .* outside the arena"),
         (["transient"], [1.0], r"key 'transient' must be a table"),
         (["transient", "bin_s"], KeyError, r"missing key transient.'bin_s'"),
@@ -122,12 +119,6 @@ def test_rotated_and_polygon_obstacles_parse() -> None:
         ScenarioError, match=r"obstacles\[0\].'vertices_m' is not a convex counter-clockwise"
     ):
         parse_scenario(data)
-
-
-def test_margin_none_is_an_explicit_zero_margin() -> None:
-    s = parse_scenario(_edit(["margin"], {"none": True}))
-    assert s.margin.as_array().tolist() == [0.0, 0.0, 0.0]
-    assert "none = true" in s.margin.source
 
 
 def test_transient_table_reads_into_the_budget() -> None:
