@@ -5,7 +5,9 @@ dataclass, ``hull``, by :func:`~hil.core.config.from_table`); this
 module adds what only a scenario knows: cells dividing the arena, input grids,
 heading cells dividing the circle, plausible units, shapes told apart by their
 keys, a ``[transient]`` budget whose bins cover a period held late (missing: the paper's
-zero budget), and sets that fit together (:func:`~hil.scenarios.scenario.check_sets`).
+zero budget), obstacle speed bounds (``[obstacle_motion]``, per obstacle
+``max_speed_mps``; missing: fixed obstacles), and sets that fit together
+(:func:`~hil.scenarios.scenario.check_sets`).
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from hil.scenarios.scenario import (
     Hull,
     InputAxis,
     Obstacle,
+    ObstacleTracking,
     Scenario,
     Target,
     check_geometry,
@@ -50,6 +53,7 @@ _TOP_KEYS = {
     "transient",
     "hull",
     "abstraction",
+    "obstacle_motion",
     "obstacles",
     "target",
 }
@@ -71,10 +75,11 @@ def _divides(length: float, step: float) -> bool:
     return abs(n - round(n)) < 1e-6 and round(n) >= 1
 
 
-def _shape(data: dict[str, Any], where: str) -> Shape:
+def _shape(data: dict[str, Any], where: str, extra: frozenset[str] = frozenset()) -> Shape:
+    """Read a rectangle, rotated rectangle or polygon; `extra` are further allowed keys."""
     if "center_m" in data:
         allowed = {"name", "center_m", "size_m", "angle_rad", "inflation_m", "deflation_m"}
-        _keys(data, allowed, where)
+        _keys(data, allowed | extra, where)
         cx, cy = numbers(data, "center_m", where, 2)
         length, width = numbers(data, "size_m", where, 2)
         if not (length > 0.0 and width > 0.0):
@@ -83,7 +88,7 @@ def _shape(data: dict[str, Any], where: str) -> Shape:
             (cx, cy), (length, width), number(data, "angle_rad", where, 0.0)
         )
     if "vertices_m" in data:
-        _keys(data, {"name", "vertices_m", "inflation_m", "deflation_m"}, where)
+        _keys(data, {"name", "vertices_m", "inflation_m", "deflation_m"} | extra, where)
         raw = data["vertices_m"]
         if not isinstance(raw, list) or not all(
             isinstance(p, list) and len(p) == 2 and all(isinstance(c, int | float) for c in p)
@@ -99,7 +104,7 @@ def _shape(data: dict[str, Any], where: str) -> Shape:
                 f"with area: {raw!r}"
             )
         return poly
-    _keys(data, {"name", "x_m", "y_m", "inflation_m", "deflation_m"}, where)
+    _keys(data, {"name", "x_m", "y_m", "inflation_m", "deflation_m"} | extra, where)
     x = _interval(data, "x_m", where)
     y = _interval(data, "y_m", where)
     return Rect(x[0], x[1], y[0], y[1])
@@ -156,6 +161,31 @@ _RETIRED_MARGIN = (
     "[transient] deviation budget; delete [margin] and copy the [transient] table that "
     "`python3 tools/dev.py bench lowlevel` prints"
 )
+
+
+def _at_least_zero(data: dict[str, Any], key: str, where: str, default: float) -> float:
+    """Return `data[key]`, a finite number >= 0, or `default` when absent."""
+    value = number(data, key, where, default)
+    if value < 0.0:
+        raise ScenarioError(f"key {where}{key!r} must be >= 0, got {value!r}")
+    return value
+
+
+def _obstacle_motion(data: dict[str, Any]) -> tuple[float, ObstacleTracking]:
+    """Read `[obstacle_motion]`: the default speed bound (m/s) and the report age it relies on.
+
+    A missing table means fixed obstacles (speed 0). Every number must be finite (TOML's
+    ``nan`` and ``inf`` are refused), the speed >= 0 and the age > 0.
+    """
+    raw = table(data, "obstacle_motion", required=False)
+    where = "obstacle_motion."
+    _keys(raw, {"max_speed_mps", "max_report_age_s"}, where)
+    speed = _at_least_zero(raw, "max_speed_mps", where, 0.0)
+    default_age = ObstacleTracking().max_report_age_s
+    age = number(raw, "max_report_age_s", where, default_age)
+    if not age > 0.0:
+        raise ScenarioError(f"key {where}'max_report_age_s' must be > 0, got {age!r}")
+    return speed, ObstacleTracking(max_report_age_s=age)
 
 
 _ENVELOPE_AXES = ("surge_mps", "sway_mps", "yaw_rate_radps")
@@ -300,6 +330,7 @@ def _parse(data: dict[str, Any], default_name: str) -> Scenario:
     if inflation < 0.0 or deflation < 0.0:
         raise ScenarioError(f"keys abstraction.* must be >= 0, got {abstraction!r}")
 
+    max_speed, tracking = _obstacle_motion(data)
     raw_obstacles = data.get("obstacles", [])
     if not isinstance(raw_obstacles, list):
         raise ScenarioError(f"key 'obstacles' must be an array of tables, got {raw_obstacles!r}")
@@ -311,8 +342,9 @@ def _parse(data: dict[str, Any], default_name: str) -> Scenario:
         obstacles.append(
             Obstacle(
                 str(raw.get("name", f"O{n + 1}")),
-                _shape(raw, where),
+                _shape(raw, where, frozenset({"max_speed_mps"})),
                 number(raw, "inflation_m", where, inflation),
+                _at_least_zero(raw, "max_speed_mps", where, max_speed),
             )
         )
     target_data = table(data, "target")
@@ -335,6 +367,7 @@ def _parse(data: dict[str, Any], default_name: str) -> Scenario:
         hull=hull,
         obstacles=tuple(obstacles),
         target=target,
+        tracking=tracking,
     )
     check_sets(scenario)
     check_geometry(scenario)
