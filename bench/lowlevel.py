@@ -12,10 +12,7 @@ Tracking: references change every 2 s as a random walk on the paper's input grid
 noise and the EKF in the loop. The error is nu - nu_ref against the command as issued.
 Printed beside the paper's tank figures, with the least error the thrust limits allow
 for the same steps (an ideal jerk- and acceleration-limited response, see
-`ideal_step_error`), and a per-axis bound on the error after settling (the part of
-each 2-s window after 1 s), which the symbolic layer's robustness margin can use: the
-scenario's ``[margin]`` is its maximum, rounded up, printed as a TOML table
-(:mod:`hil.sim.margin` holds the recipe; a test checks the packaged scenarios ship it).
+`ideal_step_error`).
 
 Transient budget: the scenario's ``[transient]`` (:mod:`hil.sim.transient`): per period
 class (hold, change, start) and 0.25-s bin, how far the true position and heading stray
@@ -60,20 +57,12 @@ from hil.sim.closed_loop import (
     LowLevelConfig,
     simulate_closed_loop,
 )
-from hil.sim.margin import (
-    MARGIN_DIGITS,
-    SEED0,
-    MarginRecipe,
-    input_grid,
-    margin_from,
-    random_walk_refs,
-    settled_error,
-)
 from hil.sim.transient import (
     CLASS_NAMES,
     DIGITS,
     TransientRecipe,
     derive_transient,
+    input_grid,
     toml_table,
 )
 
@@ -83,6 +72,25 @@ GRID = input_grid(load_scenario("paper"))  # (lo, hi, step) of the paper's input
 # Paper, Sec. V-C ("MSE" as printed): surge m/s, sway m/s, yaw deg/s.
 PAPER = np.array([0.00768, 0.00431, 0.62108])
 AXES = ("surge m/s", "sway m/s", "yaw deg/s")
+SEED0 = 1000
+"""Seed of the first random walk of the tracking figures; seed k is SEED0 + k."""
+
+
+def random_walk_refs(n: int, seed: int, grid: tuple[F, F, F]) -> F:
+    """Return (n, 3) references: a random walk on the grid, one step per axis at most.
+
+    The walk starts at the grid point nearest zero velocity; `grid` is (lo, hi, step),
+    each shape (3,) in (m/s, m/s, rad/s).
+    """
+    lo, hi, step = grid
+    rng = np.random.default_rng(seed)
+    top = np.round((hi - lo) / step).astype(int)
+    idx = np.clip(np.round(-lo / step).astype(int), 0, top)
+    out = np.empty((n, 3))
+    for k in range(n):
+        idx = np.clip(idx + rng.integers(-1, 2, size=3), 0, top)
+        out[k] = lo + idx * step
+    return out
 
 
 
@@ -215,8 +223,7 @@ def interpreted_seconds(span_s: float) -> float:
     """Time `span_s` simulated seconds of the same loop under NUMBA_DISABLE_JIT=1."""
     code = (
         "import time, numpy as np\n"
-        "from bench.lowlevel import GRID\n"
-        "from hil.sim.margin import random_walk_refs\n"
+        "from bench.lowlevel import GRID, random_walk_refs\n"
         "from hil.sim.closed_loop import simulate_closed_loop, LowLevelConfig\n"
         f"refs = random_walk_refs({max(1, round(span_s / 2.0))}, 0, GRID)\n"
         "t = time.process_time(); simulate_closed_loop(refs, LowLevelConfig())\n"
@@ -242,7 +249,6 @@ def main(argv: list[str] | None = None) -> int:
     cfg = LowLevelConfig()
     period = cfg.command_period_s
     n_ref = max(1, round(args.seconds / period))
-    recipe = MarginRecipe(seeds=args.seeds, seconds=args.seconds)
     refs = [random_walk_refs(n_ref, SEED0 + s, GRID) for s in range(args.seeds)]
 
     t0 = time.perf_counter()
@@ -274,7 +280,7 @@ def main(argv: list[str] | None = None) -> int:
         ),
     }
     results = {name: run_variant(v, refs) for name, v in variants.items()}
-    rms, mse, default_runs = results["EKF + min-magnitude/azimuth alloc (default)"]
+    rms, mse, _ = results["EKF + min-magnitude/azimuth alloc (default)"]
 
     a_thrust, j_thrust = axis_limits(cfg.vessel, cfg.thrusters, with_slew=True)
     h_max, h_jac = hydro_margins(cfg.vessel)
@@ -318,27 +324,6 @@ def main(argv: list[str] | None = None) -> int:
         f"  limits used: accel {np.round(to_display(a_strict), 3)} per s, jerk strict "
         f"{np.round(to_display(j_strict), 3)}, idle {np.round(to_display(j_idle), 3)} per s^2"
     )
-
-    # ---- settled bound (for the symbolic layer's margin) ----
-    settled = settled_error(default_runs, period, recipe.settle_after_s)
-    p99, worst = settled.p99, settled.worst
-    print(
-        f"\nerror after settling (|nu - nu_ref| over the part of each window after "
-        f"{recipe.settle_after_s:g} s, default config)"
-    )
-    print(f"  {'':<44}{header}")
-    print(fmt_row("99th percentile", to_display(p99)))
-    print(fmt_row("max", to_display(worst)))
-    margin = margin_from(worst)
-    print(
-        f"\nscenario margin this measures (max above in SI units, rounded up to "
-        f"{MARGIN_DIGITS} decimals;\n  {args.seeds} seeds x {n_ref * period:.0f} s, "
-        f"`python -m bench lowlevel --seconds {args.seconds:g} --seeds {args.seeds}`):"
-    )
-    print("  [margin]")
-    print(f"  surge_mps = {margin[0]:.{MARGIN_DIGITS}f}")
-    print(f"  sway_mps = {margin[1]:.{MARGIN_DIGITS}f}")
-    print(f"  yaw_rate_radps = {margin[2]:.{MARGIN_DIGITS}f}")
 
     # ---- transient budget (the scenario's [transient]) ----
     recipe_t = TransientRecipe()
@@ -431,9 +416,6 @@ def main(argv: list[str] | None = None) -> int:
                     "paper": PAPER.tolist(),
                     "bound_strict_rms": to_display(bound_strict).tolist(),
                     "bound_idle_rms": to_display(bound_idle).tolist(),
-                    "settled_p99": to_display(p99).tolist(),
-                    "settled_max": to_display(worst).tolist(),
-                    "margin_si": margin.tolist(),
                     "transient": {
                         "position_m": measured.position_m.tolist(),
                         "heading_rad": measured.heading_rad.tolist(),

@@ -113,7 +113,7 @@ def main(argv: list[str] | None = None) -> int:
         )
         for label, stack in (
             ("open loop, stack re-run (default)", True),
-            ("decisions + tracking + margin only", False),
+            ("decisions + tracking only", False),
         ):
             times = [_replay_s(paths, stack) for _ in range(max(1, args.repeat))]
             best = min(t for t, _ in times) * per

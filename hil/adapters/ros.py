@@ -300,7 +300,10 @@ class RosObstacleSource:
     """Obstacles tracked by motion capture: the scenario's shapes at the reported centres.
 
     Motion-capture noise would otherwise make every message a new layout (and a
-    re-synthesis): a layout changes only when some obstacle moved by `min_move_m`.
+    re-synthesis): the obstacles move only when some centre moved by `min_move_m`; a
+    message that moves none still renews the layout's stamp (the report's time), so
+    still obstacles stay fresh for the runtime's report-age check. (The kept positions
+    then lag the reported ones by less than `min_move_m`.)
 
     Args:
         initial: The scenario's layout; obstacle n keeps its size and follows pose n.
@@ -341,9 +344,10 @@ class RosObstacleSource:
                                         y - (rect.y_min_m + rect.y_max_m) / 2))
         shift = max((math.hypot(n.x_min_m - o.x_min_m, n.y_min_m - o.y_min_m)
                      for n, o in zip(moved, current, strict=True)), default=0.0)
-        if shift >= self._min_move_m:
-            with self._lock:
-                self._layout = ObstacleLayout(t_ns, tuple(moved))
+        with self._lock:
+            self._layout = ObstacleLayout(
+                t_ns, tuple(moved) if shift >= self._min_move_m else current
+            )
 
 
 def fill_obstacle_msg(msg: Any, layout: ObstacleLayout, transform: ArenaTransform) -> None:

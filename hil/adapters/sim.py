@@ -99,7 +99,8 @@ class SimConfig:
         load: Environmental load b(t).
         obstacles: Real obstacles at t = 0.
         motions: Scheduled obstacle motions.
-        obstacle_report_period_s: How often a moving obstacle's position is reported (s).
+        obstacle_report_period_s: How often the obstacles' positions are reported when
+            motions are scheduled (s).
         thruster_outages: Spans of thruster-link failure (fault injection).
     """
 
@@ -166,14 +167,19 @@ class SimImuSource:
 
 
 class SimObstacleSource:
-    """The obstacle layout over simulated time, reported at a fixed period while moving."""
+    """The obstacle layout over simulated time: with motions scheduled, a tracker.
+
+    A world with motions reports every obstacle's position every
+    ``obstacle_report_period_s``, moved or not (a tracker re-reports still obstacles too,
+    so their reports stay fresh); a world without keeps the layout of t = 0.
+    """
 
     def __init__(self, world: SimWorld) -> None:
         self._world = world
         self._layout = ObstacleLayout(0, world.config.obstacles)
 
     def latest(self) -> ObstacleLayout:
-        """Return the newest reported layout (a new object only when it changed)."""
+        """Return the newest reported layout, stamped with its report time."""
         cfg = self._world.config
         period_ns = round(cfg.obstacle_report_period_s * NS_PER_S)
         t_ns = (self._world.clock.now_ns() // period_ns) * period_ns
@@ -183,8 +189,7 @@ class SimObstacleSource:
         for motion in cfg.motions:
             dx, dy = motion.offset_m(t_ns / NS_PER_S)
             obstacles[motion.index] = cfg.obstacles[motion.index].translate(dx, dy)
-        if tuple(obstacles) != self._layout.obstacles:
-            self._layout = ObstacleLayout(t_ns, tuple(obstacles))
+        self._layout = ObstacleLayout(t_ns, tuple(obstacles))
         return self._layout
 
 

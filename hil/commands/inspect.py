@@ -5,7 +5,7 @@ Converts a run to an ``.rrd`` file (or streams it to a new viewer with
 targets, the hull at every pose and the trajectory; the controller's view at
 each decision (safe inputs as predicted arcs, the chosen one, the winning set at
 the current heading cell, re-synthesized for the recorded layout); and the time
-series (velocity tracking, tracking error against the margin, thrusters, value,
+series (velocity tracking, tracking error against the velocity envelope, thrusters, value,
 synthesis time, events), laid out by a blueprint. Never modifies the log. A log
 that cannot be read gets a one-line error on stderr and exit status 2.
 """

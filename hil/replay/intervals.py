@@ -156,7 +156,7 @@ def _failed_times(checks: Sequence[Check]) -> list[int]:
 
 INTERRUPTIONS = frozenset(
     {"pose_lost", "thruster_failure", "no_controller", "not_winning", "stopped", "aborted",
-     "timeout"}
+     "timeout", "obstacles_stale"}
 )
 """Event codes after which an interval no longer runs as its decision assumed (a hold,
 thrust not delivered, a stop): it is judged up to the event, its end is not."""

@@ -150,7 +150,9 @@ def build_runtime(
     resynthesizer: Resynthesizer[SymbolicController] = Resynthesizer(solve, mode)
     return Runtime(world, EkfObserver(start_nu=start_nu), low_level_for(loop.loop_hz),
                    resynthesizer, select, log, loop, scenario_hash(scenario),
-                   estimation_position_m=scenario.transient.estimation_position_m)
+                   estimation_position_m=scenario.transient.estimation_position_m,
+                   obstacle_max_age_s=(scenario.tracking.max_report_age_s
+                                       if scenario.tracks_obstacles else None))
 
 
 def synthesizer_for(scenario: Scenario, cache_dir: Path | None = None) -> Synthesizer:

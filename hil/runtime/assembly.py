@@ -163,10 +163,11 @@ def select_index(safe_inputs: FloatArray, previous: FloatArray) -> int:
 def obstacles_from_layout(scenario: Scenario, layout: ObstacleLayout) -> tuple[Obstacle, ...]:
     """Turn a reported layout into scenario obstacles with the scenario's inflation.
 
-    Obstacle n keeps the name and inflation of the scenario's obstacle n; extra
-    obstacles take the largest inflation of the scenario.
+    Obstacle n keeps the name, inflation and speed bound of the scenario's obstacle n;
+    extra obstacles take the largest inflation and speed bound of the scenario.
     """
     default = max((o.inflation_m for o in scenario.obstacles), default=0.0)
+    fastest = max((o.max_speed_mps for o in scenario.obstacles), default=0.0)
     out = []
     for n, rect in enumerate(layout.obstacles):
         known = scenario.obstacles[n] if n < len(scenario.obstacles) else None
@@ -175,6 +176,7 @@ def obstacles_from_layout(scenario: Scenario, layout: ObstacleLayout) -> tuple[O
                 name=known.name if known else f"obstacle{n + 1}",
                 shape=Rect(rect.x_min_m, rect.x_max_m, rect.y_min_m, rect.y_max_m),
                 inflation_m=known.inflation_m if known else default,
+                max_speed_mps=known.max_speed_mps if known else fastest,
             )
         )
     return tuple(out)

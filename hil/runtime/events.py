@@ -24,6 +24,14 @@ class EventCode(enum.Enum):
     """Pose stale beyond the timeout: thrusters to zero until it is back."""
     POSE_BACK = "pose_back"
     """Pose fresh again: control resumes."""
+    OBSTACLES_STALE = "obstacles_stale"
+    """A decision was due while the obstacle report its controller was synthesized from
+    was older than the scenario's ``max_report_age_s`` (only with obstacles that move;
+    ERROR; the text gives the age): the synthesis covered their motion only that long,
+    so no decision is taken, the velocity reference goes to zero and the next decision
+    after a fresher report's controller is a first decision."""
+    OBSTACLES_BACK = "obstacles_back"
+    """A controller from a fresh enough obstacle report is in force again: decisions resume."""
     SAMPLE_REJECTED = "sample_rejected"
     """A sample was refused (non-finite, out of range, out of order, gated)."""
     THRUSTER_FAILURE = "thruster_failure"

@@ -103,6 +103,11 @@ class Runtime:
         estimation_position_m: The transient budget's bound on the estimate's position
             error (m), the tolerance of the runtime monitor's tube judge
             (:mod:`hil.runtime.monitor`).
+        obstacle_max_age_s: With obstacles that move, the oldest their report may be
+            when a decision is taken (s; the scenario's ``max_report_age_s``, which the
+            synthesis budgeted their motion for): every fresher report is re-synthesized
+            and an older one stops the vessel (``obstacles_stale``). None: obstacles
+            are fixed between layouts.
     """
 
     def __init__(
@@ -116,6 +121,7 @@ class Runtime:
         config: LoopConfig | None = None,
         scenario_hash: str = "",
         estimation_position_m: float = 0.0,
+        obstacle_max_age_s: float | None = None,
     ) -> None:
         self.world = world
         self.observer = observer
@@ -125,6 +131,8 @@ class Runtime:
         self.log = log
         self.config = config or LoopConfig()
         self.scenario_hash = scenario_hash
+        self.obstacle_max_age_s = obstacle_max_age_s
+        self._obstacles_stale = False
         self.stats = RunStats()
         self.monitor = Monitor(estimation_position_m, 1.0 / self.config.loop_hz)
         self.mode = Mode.WAITING
@@ -200,13 +208,15 @@ class Runtime:
         if self._estimating_since_ns is None:
             self._estimating_since_ns = t_ns
         if t_ns >= self._next_decision_ns and self._observer_settled(t_ns):
-            for violation in self.monitor.at_decision(t_ns, eta_hat):
-                self._violation(t_ns, violation)
-            self._decide(t_ns, eta_hat, nu_hat)
-            self._next_decision_ns = t_ns + round(self.config.decision_period_s * NS_PER_S)
-            if self._abort is not None:
-                self._stop(t_ns, EventCode.ABORTED, self._abort)
-                return
+            # A stale obstacle report leaves the decision due: taken once a fresher one is in.
+            if self._obstacles_fresh(t_ns):
+                for violation in self.monitor.at_decision(t_ns, eta_hat):
+                    self._violation(t_ns, violation)
+                self._decide(t_ns, eta_hat, nu_hat)
+                self._next_decision_ns = t_ns + round(self.config.decision_period_s * NS_PER_S)
+                if self._abort is not None:
+                    self._stop(t_ns, EventCode.ABORTED, self._abort)
+                    return
         else:
             exit_ = self.monitor.tick(t_ns, eta_hat)
             if exit_ is not None:
@@ -214,11 +224,16 @@ class Runtime:
                 # decision from the estimated velocity, now.
                 self._violation(t_ns, exit_)
                 self._reference_index = None
-                self._decide(t_ns, eta_hat, nu_hat)
-                self._next_decision_ns = t_ns + round(self.config.decision_period_s * NS_PER_S)
-                if self._abort is not None:
-                    self._stop(t_ns, EventCode.ABORTED, self._abort)
-                    return
+                if self._obstacles_fresh(t_ns):
+                    self._decide(t_ns, eta_hat, nu_hat)
+                    self._next_decision_ns = t_ns + round(
+                        self.config.decision_period_s * NS_PER_S
+                    )
+                    if self._abort is not None:
+                        self._stop(t_ns, EventCode.ABORTED, self._abort)
+                        return
+                else:
+                    self._next_decision_ns = t_ns  # decide once a fresher report is in
         if self.mode is Mode.WAITING:
             self._send(ThrusterCommand.zero(t_ns))
             return
@@ -281,8 +296,15 @@ class Runtime:
 
     def _watch_obstacles(self, t_ns: int) -> None:
         layout = self.world.obstacles.latest()
-        changed = (
-            self._submitted_layout is None or layout.obstacles != self._submitted_layout.obstacles
+        submitted = self._submitted_layout
+        changed = submitted is None or layout.obstacles != submitted.obstacles
+        # With obstacles that move, a controller is good for a bounded age of its report:
+        # a fresher report renews it, even of the same layout (the solver's memo makes
+        # that cheap when nothing moved).
+        changed = changed or (
+            self.obstacle_max_age_s is not None
+            and submitted is not None
+            and layout.t_ns > submitted.t_ns
         )
         period = self.config.resynthesis_period_s
         timer_due = (
@@ -375,6 +397,41 @@ class Runtime:
             t_ns, EventLevel.ERROR if code is not EventCode.STOPPED else EventLevel.INFO, code, text
         )
         self._send(ThrusterCommand.zero(t_ns))
+
+    def _obstacles_fresh(self, t_ns: int) -> bool:
+        """Return whether a decision may rely on the controller's obstacle report; else stop.
+
+        With obstacles that move, the synthesis avoided where they may be up to
+        ``obstacle_max_age_s`` + tau + late after their report; a decision later than
+        ``obstacle_max_age_s`` after it is not covered. Then the velocity reference goes to
+        zero (``obstacles_stale``, once per episode) and the next decision, once a
+        fresher report's controller is in, is a first decision.
+        """
+        max_age = self.obstacle_max_age_s
+        layout = self._controller_layout
+        if max_age is None or layout is None or self.controller is None:
+            return True
+        age_s = (t_ns - layout.t_ns) / NS_PER_S
+        if age_s <= max_age:
+            if self._obstacles_stale:
+                self._obstacles_stale = False
+                self._event(t_ns, EventLevel.INFO, EventCode.OBSTACLES_BACK,
+                            f"obstacle report {age_s:.2f} s old; deciding again")
+            return True
+        if not self._obstacles_stale:
+            self._obstacles_stale = True
+            self.stats.obstacle_stale_stops += 1
+            self._event(
+                t_ns,
+                EventLevel.ERROR,
+                EventCode.OBSTACLES_STALE,
+                f"obstacle report of t={layout.t_ns} ns is {age_s:.2f} s old (max "
+                f"{max_age:g} s): velocity reference zero until a fresher one",
+            )
+        self._reference_index = None
+        self.monitor.clear()
+        self._set_reference(np.zeros(3))
+        return False
 
     def _observer_settled(self, t_ns: int) -> bool:
         """Return whether a decision may be taken now (a first one waits for the filter)."""

@@ -20,7 +20,8 @@ class RunStats:
     `eta_hat` (3,), `nu_hat` (3,), `nu_ref` (3,); `tick_wall_ns` holds the clock
     time at which every tick started (for the period jitter). `tube_exits`,
     `successor_misses` and `value_not_decreasing` count the runtime monitor's
-    violations (:mod:`hil.runtime.monitor`), the worst sizes in metres beside them.
+    violations (:mod:`hil.runtime.monitor`), the worst sizes in metres beside them;
+    `obstacle_stale_stops` the stops for an obstacle report too old to decide on.
     """
 
     start_ns: int = 0
@@ -33,6 +34,7 @@ class RunStats:
     failed_syntheses: int = 0
     rejected_samples: int = 0
     pose_losses: int = 0
+    obstacle_stale_stops: int = 0
     thruster_failures: int = 0
     not_winning_decisions: int = 0
     tube_exits: int = 0

@@ -1,6 +1,6 @@
-"""Scenarios (layer 1): the arena, obstacles, target, grids and margins of a docking problem.
+"""Scenarios (layer 1): the arena, obstacles, target, grids and budgets of a docking problem.
 
-- :mod:`hil.scenarios.scenario`: the frozen scenario and its parts (inputs, margin, hull,
+- :mod:`hil.scenarios.scenario`: the frozen scenario and its parts (inputs, hull,
   obstacles, target), hull footprint and clearances;
 - :mod:`hil.scenarios.parse`: a scenario from parsed TOML, every key checked;
 - :mod:`hil.scenarios.catalog`: the packaged scenarios by name (``paper.toml``,
@@ -18,9 +18,9 @@ from hil.scenarios.scenario import (
     Hull,
     InputAxis,
     Obstacle,
+    ObstacleTracking,
     Scenario,
     Target,
-    TrackingMargin,
     check_start,
     hull_footprint,
 )
@@ -29,10 +29,10 @@ __all__ = [
     "Hull",
     "InputAxis",
     "Obstacle",
+    "ObstacleTracking",
     "Scenario",
     "ScenarioError",
     "Target",
-    "TrackingMargin",
     "check_start",
     "hull_footprint",
     "load_scenario",

@@ -1,11 +1,13 @@
 """Read a scenario from parsed TOML: every key checked, every message naming it.
 
 Keys and types are checked by :mod:`hil.core.config` (the tables that are one
-dataclass, ``margin`` and ``hull``, by :func:`~hil.core.config.from_table`); this
+dataclass, ``hull``, by :func:`~hil.core.config.from_table`); this
 module adds what only a scenario knows: cells dividing the arena, input grids,
 heading cells dividing the circle, plausible units, shapes told apart by their
 keys, a ``[transient]`` budget whose bins cover a period held late (missing: the paper's
-zero budget), and sets that fit together (:func:`~hil.scenarios.scenario.check_sets`).
+zero budget), obstacle speed bounds (``[obstacle_motion]``, per obstacle
+``max_speed_mps``; missing: fixed obstacles), and sets that fit together
+(:func:`~hil.scenarios.scenario.check_sets`).
 """
 
 from __future__ import annotations
@@ -29,9 +31,9 @@ from hil.scenarios.scenario import (
     Hull,
     InputAxis,
     Obstacle,
+    ObstacleTracking,
     Scenario,
     Target,
-    TrackingMargin,
     check_geometry,
     check_sets,
     check_transient,
@@ -48,10 +50,10 @@ _TOP_KEYS = {
     "grid",
     "inputs",
     "timing",
-    "margin",
     "transient",
     "hull",
     "abstraction",
+    "obstacle_motion",
     "obstacles",
     "target",
 }
@@ -73,10 +75,11 @@ def _divides(length: float, step: float) -> bool:
     return abs(n - round(n)) < 1e-6 and round(n) >= 1
 
 
-def _shape(data: dict[str, Any], where: str) -> Shape:
+def _shape(data: dict[str, Any], where: str, extra: frozenset[str] = frozenset()) -> Shape:
+    """Read a rectangle, rotated rectangle or polygon; `extra` are further allowed keys."""
     if "center_m" in data:
         allowed = {"name", "center_m", "size_m", "angle_rad", "inflation_m", "deflation_m"}
-        _keys(data, allowed, where)
+        _keys(data, allowed | extra, where)
         cx, cy = numbers(data, "center_m", where, 2)
         length, width = numbers(data, "size_m", where, 2)
         if not (length > 0.0 and width > 0.0):
@@ -85,7 +88,7 @@ def _shape(data: dict[str, Any], where: str) -> Shape:
             (cx, cy), (length, width), number(data, "angle_rad", where, 0.0)
         )
     if "vertices_m" in data:
-        _keys(data, {"name", "vertices_m", "inflation_m", "deflation_m"}, where)
+        _keys(data, {"name", "vertices_m", "inflation_m", "deflation_m"} | extra, where)
         raw = data["vertices_m"]
         if not isinstance(raw, list) or not all(
             isinstance(p, list) and len(p) == 2 and all(isinstance(c, int | float) for c in p)
@@ -101,7 +104,7 @@ def _shape(data: dict[str, Any], where: str) -> Shape:
                 f"with area: {raw!r}"
             )
         return poly
-    _keys(data, {"name", "x_m", "y_m", "inflation_m", "deflation_m"}, where)
+    _keys(data, {"name", "x_m", "y_m", "inflation_m", "deflation_m"} | extra, where)
     x = _interval(data, "x_m", where)
     y = _interval(data, "y_m", where)
     return Rect(x[0], x[1], y[0], y[1])
@@ -153,29 +156,36 @@ def _heading_cells(grid: dict[str, Any]) -> int:
     return round(2.0 * math.pi / width)
 
 
-_NO_MARGIN_HINT = (
-    "add a [margin] table with surge_mps, sway_mps and yaw_rate_radps (measure them with "
-    "`python3 tools/dev.py bench lowlevel`), or write `[margin]` and `none = true` to "
-    "synthesize without one, as the paper does"
+_RETIRED_MARGIN = (
+    "table 'margin' was retired: the constant tracking-error margin was replaced by the "
+    "[transient] deviation budget; delete [margin] and copy the [transient] table that "
+    "`python3 tools/dev.py bench lowlevel` prints"
 )
 
 
-def _margin(data: dict[str, Any]) -> TrackingMargin:
-    """Read `[margin]`; a missing table is an error, `none = true` an explicit zero margin."""
-    if "margin" not in data:
-        raise ScenarioError(f"missing key 'margin': {_NO_MARGIN_HINT}")
-    raw = dict(table(data, "margin"))
-    none = raw.pop("none", False)
-    if not isinstance(none, bool):
-        raise ScenarioError(f"key margin.'none' must be true or false, got {none!r}")
-    if none:
-        bounds = sorted(k for k in raw if k != "source")
-        if bounds:
-            raise ScenarioError(f"key margin.'none' = true contradicts margin keys {bounds!r}")
-        return TrackingMargin(source=str(raw.get("source", "none: [margin] none = true")))
-    if not raw:
-        raise ScenarioError(f"key 'margin' is empty: {_NO_MARGIN_HINT}")
-    return from_table(TrackingMargin, raw, "margin.", note=_UNITS)
+def _at_least_zero(data: dict[str, Any], key: str, where: str, default: float) -> float:
+    """Return `data[key]`, a finite number >= 0, or `default` when absent."""
+    value = number(data, key, where, default)
+    if value < 0.0:
+        raise ScenarioError(f"key {where}{key!r} must be >= 0, got {value!r}")
+    return value
+
+
+def _obstacle_motion(data: dict[str, Any]) -> tuple[float, ObstacleTracking]:
+    """Read `[obstacle_motion]`: the default speed bound (m/s) and the report age it relies on.
+
+    A missing table means fixed obstacles (speed 0). Every number must be finite (TOML's
+    ``nan`` and ``inf`` are refused), the speed >= 0 and the age > 0.
+    """
+    raw = table(data, "obstacle_motion", required=False)
+    where = "obstacle_motion."
+    _keys(raw, {"max_speed_mps", "max_report_age_s"}, where)
+    speed = _at_least_zero(raw, "max_speed_mps", where, 0.0)
+    default_age = ObstacleTracking().max_report_age_s
+    age = number(raw, "max_report_age_s", where, default_age)
+    if not age > 0.0:
+        raise ScenarioError(f"key {where}'max_report_age_s' must be > 0, got {age!r}")
+    return speed, ObstacleTracking(max_report_age_s=age)
 
 
 _ENVELOPE_AXES = ("surge_mps", "sway_mps", "yaw_rate_radps")
@@ -266,6 +276,8 @@ def _per_bin(raw: dict[str, Any], key: str, where: str, n_bins: int) -> tuple[fl
 
 
 def _parse(data: dict[str, Any], default_name: str) -> Scenario:
+    if "margin" in data:
+        raise ScenarioError(_RETIRED_MARGIN)
     _keys(data, _TOP_KEYS, "")
     state = table(data, "state")
     _keys(state, {"x_m", "y_m"}, "state.")
@@ -305,15 +317,6 @@ def _parse(data: dict[str, Any], default_name: str) -> Scenario:
             f"key timing.'tau_s' = {tau!r} must be in (0, 60] s (milliseconds given?)"
         )
 
-    margin = _margin(data)
-    for key, value in (
-        ("surge_mps", margin.surge_mps),
-        ("sway_mps", margin.sway_mps),
-        ("yaw_rate_radps", margin.yaw_rate_radps),
-    ):
-        if value < 0.0:
-            raise ScenarioError(f"key margin.{key!r} must be >= 0, got {value!r}")
-
     transient = _transient(data, tau)
 
     hull = from_table(Hull, table(data, "hull", required=False), "hull.", note=_UNITS)
@@ -327,6 +330,7 @@ def _parse(data: dict[str, Any], default_name: str) -> Scenario:
     if inflation < 0.0 or deflation < 0.0:
         raise ScenarioError(f"keys abstraction.* must be >= 0, got {abstraction!r}")
 
+    max_speed, tracking = _obstacle_motion(data)
     raw_obstacles = data.get("obstacles", [])
     if not isinstance(raw_obstacles, list):
         raise ScenarioError(f"key 'obstacles' must be an array of tables, got {raw_obstacles!r}")
@@ -338,8 +342,9 @@ def _parse(data: dict[str, Any], default_name: str) -> Scenario:
         obstacles.append(
             Obstacle(
                 str(raw.get("name", f"O{n + 1}")),
-                _shape(raw, where),
+                _shape(raw, where, frozenset({"max_speed_mps"})),
                 number(raw, "inflation_m", where, inflation),
+                _at_least_zero(raw, "max_speed_mps", where, max_speed),
             )
         )
     target_data = table(data, "target")
@@ -358,11 +363,11 @@ def _parse(data: dict[str, Any], default_name: str) -> Scenario:
         sway=sway,
         yaw_rate=yaw,
         tau_s=tau,
-        margin=margin,
         transient=transient,
         hull=hull,
         obstacles=tuple(obstacles),
         target=target,
+        tracking=tracking,
     )
     check_sets(scenario)
     check_geometry(scenario)

@@ -27,9 +27,9 @@ __all__ = [
     "Hull",
     "InputAxis",
     "Obstacle",
+    "ObstacleTracking",
     "Scenario",
     "Target",
-    "TrackingMargin",
     "check_geometry",
     "check_sets",
     "check_transient",
@@ -53,27 +53,6 @@ class InputAxis:
 
 
 @dataclass(frozen=True, slots=True)
-class TrackingMargin:
-    """Bound on |nu - nu_ref| per axis that the low-level loop guarantees.
-
-    Attributes:
-        surge_mps: Surge bound (m/s).
-        sway_mps: Sway bound (m/s).
-        yaw_rate_radps: Yaw-rate bound (rad/s).
-        source: Where the numbers come from.
-    """
-
-    surge_mps: float = 0.0
-    sway_mps: float = 0.0
-    yaw_rate_radps: float = 0.0
-    source: str = ""
-
-    def as_array(self) -> FloatArray:
-        """Return (surge, sway, yaw rate) as shape (3,)."""
-        return np.array([self.surge_mps, self.sway_mps, self.yaw_rate_radps])
-
-
-@dataclass(frozen=True, slots=True)
 class Hull:
     """The vessel's footprint: a rectangle around the body origin (m)."""
 
@@ -83,16 +62,34 @@ class Hull:
 
 @dataclass(frozen=True, slots=True)
 class Obstacle:
-    """A real obstacle and the inflation the abstraction uses for it (m)."""
+    """A real obstacle, the inflation the abstraction uses for it and its speed bound.
+
+    Attributes:
+        name: Short name.
+        shape: Where it was last reported (arena frame, m).
+        inflation_m: The centre keeps this far from it (m): the abstract obstacle.
+        max_speed_mps: Bound on its speed (m/s); 0 for a fixed obstacle.
+    """
 
     name: str
     shape: Shape
     inflation_m: float
+    max_speed_mps: float = 0.0
 
     @property
     def inflated(self) -> Shape:
         """Return the obstacle grown by its inflation (the abstract obstacle)."""
         return self.shape.inflate(self.inflation_m)
+
+    def reach(self, horizon_s: float) -> Shape:
+        """Return where the obstacle may be within `horizon_s` of its report (s).
+
+        The shape grown by ``max_speed_mps * horizon_s`` on every side, which contains
+        the shape swept along any path of that length; the shape itself for a fixed
+        obstacle.
+        """
+        grow_m = self.max_speed_mps * horizon_s
+        return self.shape.inflate(grow_m) if grow_m > 0.0 else self.shape
 
     def translate(self, dx_m: float, dy_m: float) -> Obstacle:
         """Return the obstacle moved by (dx, dy) (m)."""
@@ -112,6 +109,28 @@ class Target:
         return self.shape.inflate(-self.deflation_m)
 
 
+@dataclass(frozen=True, slots=True)
+class ObstacleTracking:
+    """What a decision may assume about obstacles that move (the ``[obstacle_motion]`` table).
+
+    An obstacle with ``max_speed_mps`` > 0 is tracked: a controller synthesized from its
+    report at ``t_r`` is used for decisions only while the report is at most
+    ``max_report_age_s`` old, and each decision's interval lasts at most tau +
+    :data:`~hil.core.transient.LATE_S`, so the synthesis avoids where it may be up to
+    :meth:`horizon_s` after ``t_r`` (:meth:`Obstacle.reach`). A report older than that
+    stops the vessel until a fresher one (the runtime's ``obstacles_stale`` event).
+
+    Attributes:
+        max_report_age_s: Oldest a tracked obstacle's report may be at a decision (s).
+    """
+
+    max_report_age_s: float = 1.0
+
+    def horizon_s(self, tau_s: float) -> float:
+        """Return how long after its report a tracked obstacle is avoided (s)."""
+        return self.max_report_age_s + tau_s + LATE_S
+
+
 def hull_footprint(hull: Hull, x_m: float, y_m: float, psi_rad: float) -> Polygon:
     """Return the hull rectangle at pose (x, y, psi) in the arena frame."""
     return Polygon.rotated_rect((x_m, y_m), (hull.length_m, hull.beam_m), psi_rad)
@@ -119,7 +138,7 @@ def hull_footprint(hull: Hull, x_m: float, y_m: float, psi_rad: float) -> Polygo
 
 @dataclass(frozen=True, slots=True)
 class Scenario:
-    """One docking problem: arena, grid, inputs, timing, margins, hull and sets.
+    """One docking problem: arena, grid, inputs, timing, budget, hull and sets.
 
     Attributes:
         name: Short name.
@@ -132,15 +151,14 @@ class Scenario:
         sway: Sway input grid (m/s).
         yaw_rate: Yaw-rate input grid (rad/s).
         tau_s: Sampling time of the abstraction (s).
-        margin: Tracking-error margin per axis (the constant margin after settling; being
-            replaced by `transient`).
         transient: Time-resolved bounds on the deviation from the exact arc (and the
             velocity error) per period class, and the EKF's pose error
             (:class:`~hil.core.transient.TransientBudget`); its bins cover `tau_s` +
             :data:`~hil.core.transient.LATE_S`.
         hull: Hull footprint.
-        obstacles: Real obstacles with their inflation.
+        obstacles: Real obstacles with their inflation and speed bound.
         target: Real target with its deflation.
+        tracking: The report age a decision may rely on for obstacles that move.
     """
 
     name: str
@@ -153,11 +171,11 @@ class Scenario:
     sway: InputAxis
     yaw_rate: InputAxis
     tau_s: float
-    margin: TrackingMargin
     transient: TransientBudget
     hull: Hull
     obstacles: tuple[Obstacle, ...]
     target: Target
+    tracking: ObstacleTracking = ObstacleTracking()
 
     def digest(self) -> str:
         """Return a short hash of everything in the scenario (for logs and caches).
@@ -177,6 +195,21 @@ class Scenario:
             self.surge.values(), self.sway.values(), self.yaw_rate.values(), indexing="ij"
         )
         return np.stack([g.ravel() for g in grids], axis=1)
+
+    @property
+    def tracks_obstacles(self) -> bool:
+        """Whether some obstacle may move (a speed bound above zero)."""
+        return any(o.max_speed_mps > 0.0 for o in self.obstacles)
+
+    def obstacle_reach(self) -> tuple[Shape, ...]:
+        """Return the real obstacles grown by their motion over the tracking horizon.
+
+        What a controller synthesized from the obstacles' reports must avoid
+        (:meth:`Obstacle.reach` over :meth:`ObstacleTracking.horizon_s`); the real
+        obstacles themselves when none moves.
+        """
+        horizon = self.tracking.horizon_s(self.tau_s)
+        return tuple(o.reach(horizon) for o in self.obstacles)
 
     def inflated_obstacles(self) -> tuple[Shape, ...]:
         """Return the abstract obstacles (inflated)."""
@@ -201,10 +234,6 @@ class Scenario:
                 for o, d in zip(self.obstacles, offsets, strict=True)
             )
         )
-
-    def with_margin(self, margin: TrackingMargin) -> Scenario:
-        """Return the same scenario with another tracking-error margin."""
-        return replace(self, margin=margin)
 
     def with_transient(self, budget: TransientBudget) -> Scenario:
         """Return the same scenario with another transient budget.

@@ -3,8 +3,8 @@
 :mod:`hil.sim.plant` steps thrusters and hull together, :mod:`hil.sim.sensors` models
 motion capture and the IMU, :mod:`hil.sim.closed_loop` runs sensors, the low level
 (:mod:`hil.controllers.low_level`) and the plant in one compiled loop for benchmarks
-and budgets; :mod:`hil.sim.margin` and :mod:`hil.sim.transient` measure on it the
-scenarios' ``[margin]`` and ``[transient]`` tables. May import :mod:`hil.core`,
+and budgets; :mod:`hil.sim.transient` measures on it the scenarios' ``[transient]``
+table. May import :mod:`hil.core`,
 :mod:`hil.model`, :mod:`hil.scenarios` and :mod:`hil.controllers`; the adapters'
 simulated backend builds on it.
 """

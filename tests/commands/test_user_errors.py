@@ -65,14 +65,13 @@ def test_run_refuses_impossible_starts(
     _fails_with(["run", "coarse", "--no-record", "--start", start], capsys, needle)
 
 
-def test_scenario_without_margin_says_how(
+def test_scenario_with_the_retired_margin_says_what_replaced_it(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    start = COARSE.index("[margin]")
-    end = COARSE.index("[hull]")
-    path = tmp_path / "no-margin.toml"
-    path.write_text(COARSE[:start] + COARSE[end:])
-    _fails_with(["synth", str(path)], capsys, "'margin'", "none = true")
+    path = tmp_path / "old-margin.toml"
+    path.write_text(COARSE.replace("[hull]", "[margin]\nnone = true\n\n[hull]"))
+    _fails_with(["synth", str(path)], capsys, "'margin' was retired", "[transient]",
+                "bench lowlevel")
 
 
 def test_scenario_with_an_obstacle_outside_the_arena(

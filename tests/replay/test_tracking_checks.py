@@ -1,4 +1,4 @@
-"""The tracking and margin checks on the recorded tracking error."""
+"""The tracking checks on the recorded tracking error."""
 
 from __future__ import annotations
 

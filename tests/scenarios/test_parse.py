@@ -49,16 +49,22 @@ def _edit(path: list[str], value: Any) -> dict[str, Any]:
         ),
         (["timing", "tau_s"], 2000.0, r"timing.'tau_s' = 2000.0 .*milliseconds given"),
         (["timing", "tau_ms"], 2000, r"unknown key timing.'tau_ms'"),
-        (["margin", "surge_mps"], -0.01, r"margin.'surge_mps' must be >= 0"),
         (["obstacles", "1", "x_m"], [-3.0, -2.5], r"'target' .* overlaps obstacles\[1\] \('O2'\)"),
         (["abstraction", "target_deflation_m"], 0.8, r"'target' is empty after deflation by 0.8"),
         (["target", "x_m"], [10.0, 11.0], r"'target' .* lies outside the state bounds"),
         (["obstacles"], {"x_m": 1}, r"'obstacles' must be an array of tables"),
         (["hull", "length_m"], -1.0, r"'hull' must have positive sizes"),
-        (["margin"], KeyError, r"missing key 'margin': .*`none = true`"),
-        (["margin"], {}, r"key 'margin' is empty: .*`none = true`"),
-        (["margin"], {"none": True, "sway_mps": 0.1}, r"'none' = true contradicts .*sway_mps"),
-        (["margin"], {"none": "yes"}, r"margin.'none' must be true or false, got 'yes'"),
+        (["margin"], {"none": True}, r"'margin' was retired: .*\[transient\].*bench lowlevel"),
+        (["obstacle_motion", "max_speed_mps"], -0.1, r"motion.'max_speed_mps' must be >= 0"),
+        (["obstacle_motion", "max_speed_mps"], math.nan, r"'max_speed_mps' must be a finite"),
+        (["obstacle_motion", "max_speed_mps"], math.inf, r"'max_speed_mps' must be a finite"),
+        (["obstacle_motion", "max_report_age_s"], 0.0, r"'max_report_age_s' must be > 0, got 0.0"),
+        (["obstacle_motion", "max_report_age_s"], math.nan, r"'max_report_age_s' must be a finite"),
+        (["obstacle_motion", "max_speed_kn"], 1.0, r"unknown key obstacle_motion.'max_speed_kn'"),
+        (["obstacles", "1", "max_speed_mps"], -0.2, r"obstacles\[1\].'max_speed_mps' must be >= 0"),
+        (["obstacles", "1", "max_speed_mps"], math.nan, r"\[1\].'max_speed_mps' must be a fin"),
+        (["target", "max_speed_mps"], 0.1, r"unknown key target.'max_speed_mps'"),
+        (["margin"], {"surge_mps": 0.01}, r"'margin' was retired"),
         (["obstacles", "0", "x_m"], [4.0, 5.0], r"obstacles\[0\] \('O1'\) .* outside the arena"),
         (["transient"], [1.0], r"key 'transient' must be a table"),
         (["transient", "bin_s"], KeyError, r"missing key transient.'bin_s'"),
@@ -124,10 +130,27 @@ def test_rotated_and_polygon_obstacles_parse() -> None:
         parse_scenario(data)
 
 
-def test_margin_none_is_an_explicit_zero_margin() -> None:
-    s = parse_scenario(_edit(["margin"], {"none": True}))
-    assert s.margin.as_array().tolist() == [0.0, 0.0, 0.0]
-    assert "none = true" in s.margin.source
+def test_obstacle_speeds_default_to_the_table_and_obstacles_may_set_their_own() -> None:
+    data = _paper_data()
+    assert not parse_scenario(data).tracks_obstacles  # the tank's obstacles are fixed
+    data["obstacle_motion"] = {"max_speed_mps": 0.05, "max_report_age_s": 0.5}
+    data["obstacles"][1]["max_speed_mps"] = 0.2
+    s = parse_scenario(data)
+    assert [o.max_speed_mps for o in s.obstacles] == [0.05, 0.2]
+    assert s.tracks_obstacles
+    assert s.tracking.max_report_age_s == 0.5
+    del data["obstacle_motion"]
+    s = parse_scenario(data)
+    assert [o.max_speed_mps for o in s.obstacles] == [0.0, 0.2]
+    assert s.tracking.max_report_age_s == 1.0
+
+
+def test_a_nan_speed_written_in_toml_is_refused() -> None:
+    text = PAPER_TOML.read_text(encoding="utf-8").replace(
+        "max_speed_mps = 0.0 ", "max_speed_mps = nan "
+    )
+    with pytest.raises(ScenarioError, match=r"obstacle_motion.'max_speed_mps' must be a finite"):
+        parse_scenario(tomllib.loads(text))
 
 
 def test_transient_table_reads_into_the_budget() -> None:

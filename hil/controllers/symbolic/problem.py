@@ -31,9 +31,11 @@ class SymbolicProblem:
         tau_s: Command period (s).
         budget: The closed loop's deviation from the exact arc, per class, and the
             estimate's error.
-        obstacles: Real obstacles in (x, y).
-        inflation_m: The centre keeps this far from every real obstacle (m), besides the
-            hull never touching one (the paper's abstract obstacles).
+        obstacles: Real obstacles in (x, y); an obstacle that moves is grown by how far
+            it may move while the controller relies on its report
+            (:meth:`~hil.scenarios.Scenario.obstacle_reach`).
+        inflation_m: The centre keeps this far from every (grown) obstacle (m), besides
+            the hull never touching one (the paper's abstract obstacles).
         target: Abstract (deflated) target in (x, y).
         arena: The walls: the hull stays inside.
         hull_m: Hull (length, beam) (m), centred on the body origin.
@@ -55,14 +57,14 @@ class SymbolicProblem:
 
     @staticmethod
     def from_scenario(scenario: Scenario) -> SymbolicProblem:
-        """Return the abstract problem of a scenario."""
+        """Return the abstract problem of a scenario (moving obstacles grown by their reach)."""
         inflation = max((o.inflation_m for o in scenario.obstacles), default=0.0)
         return SymbolicProblem(
             grid=Grid.from_scenario(scenario),
             inputs=scenario.inputs(),
             tau_s=scenario.tau_s,
             budget=scenario.transient,
-            obstacles=tuple(o.shape for o in scenario.obstacles),
+            obstacles=scenario.obstacle_reach(),
             inflation_m=inflation,
             target=scenario.abstract_target(),
             arena=scenario.arena,
