@@ -450,15 +450,18 @@ class RosWorld:
 
     Args:
         config: Topics, QoS, frames and clock settings.
+        obstacles: The scenario's layout, tracked when the config names an obstacle topic.
+        min_move_m: Smallest move of a tracked centre that changes the layout (m); the
+            scenario's ``position_tolerance_m``, by which moving obstacles are grown.
     """
 
     def __init__(self, config: RosConfig | None = None,
-                 obstacles: ObstacleLayout | None = None) -> None:
+                 obstacles: ObstacleLayout | None = None, min_move_m: float = 0.01) -> None:
         self.config = config or RosConfig()
         # Tracked obstacles when a topic is configured and the layout to start from given.
         self.obstacle_source: RosObstacleSource | None = None
         if self.config.topics.obstacles and obstacles is not None:
-            self.obstacle_source = RosObstacleSource(obstacles, self.config.transform)
+            self.obstacle_source = RosObstacleSource(obstacles, self.config.transform, min_move_m)
         self._pose_inbox = _Inbox()
         self._imu_inbox = _Inbox()
         self._context: Any = None

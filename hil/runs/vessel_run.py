@@ -138,7 +138,8 @@ def run_on_ros(config: VesselConfig, out_dir: Path | None = None,
     if out_dir is None:
         out_dir = Path(config.runs_dir) / f"{scenario.name}-vessel-{time.strftime('%Y%m%d-%H%M%S')}"
     layout = layout_from_scenario(scenario)
-    with RosWorld(config.ros, obstacles=layout) as ros, Recorder(
+    with RosWorld(config.ros, obstacles=layout,
+                  min_move_m=scenario.tracking.position_tolerance_m) as ros, Recorder(
             out_dir, RunInfo.current(config.scenario, scenario_hash(scenario), None,
                                      backend="ros")) as recorder:
         assert ros.clock is not None

@@ -175,17 +175,19 @@ def _obstacle_motion(data: dict[str, Any]) -> tuple[float, ObstacleTracking]:
     """Read `[obstacle_motion]`: the default speed bound (m/s) and the report age it relies on.
 
     A missing table means fixed obstacles (speed 0). Every number must be finite (TOML's
-    ``nan`` and ``inf`` are refused), the speed >= 0 and the age > 0.
+    ``nan`` and ``inf`` are refused), the speed and the position tolerance >= 0, the age > 0.
     """
     raw = table(data, "obstacle_motion", required=False)
     where = "obstacle_motion."
-    _keys(raw, {"max_speed_mps", "max_report_age_s"}, where)
+    _keys(raw, {"max_speed_mps", "max_report_age_s", "position_tolerance_m"}, where)
     speed = _at_least_zero(raw, "max_speed_mps", where, 0.0)
     default_age = ObstacleTracking().max_report_age_s
     age = number(raw, "max_report_age_s", where, default_age)
     if not age > 0.0:
         raise ScenarioError(f"key {where}'max_report_age_s' must be > 0, got {age!r}")
-    return speed, ObstacleTracking(max_report_age_s=age)
+    lag = _at_least_zero(raw, "position_tolerance_m", where,
+                         ObstacleTracking().position_tolerance_m)
+    return speed, ObstacleTracking(max_report_age_s=age, position_tolerance_m=lag)
 
 
 _ENVELOPE_AXES = ("surge_mps", "sway_mps", "yaw_rate_radps")

@@ -81,15 +81,16 @@ class Obstacle:
         """Return the obstacle grown by its inflation (the abstract obstacle)."""
         return self.shape.inflate(self.inflation_m)
 
-    def reach(self, horizon_s: float) -> Shape:
+    def reach(self, horizon_s: float, lag_m: float = 0.0) -> Shape:
         """Return where the obstacle may be within `horizon_s` of its report (s).
 
-        The shape grown by ``max_speed_mps * horizon_s`` on every side, which contains
-        the shape swept along any path of that length; the shape itself for a fixed
-        obstacle.
+        The shape grown by ``max_speed_mps * horizon_s + lag_m`` on every side (lag_m:
+        how far the report may trail the tracker, m), which contains the shape swept
+        along any path of that length; the shape itself for a fixed obstacle.
         """
-        grow_m = self.max_speed_mps * horizon_s
-        return self.shape.inflate(grow_m) if grow_m > 0.0 else self.shape
+        if self.max_speed_mps <= 0.0:
+            return self.shape
+        return self.shape.inflate(self.max_speed_mps * horizon_s + lag_m)
 
     def translate(self, dx_m: float, dy_m: float) -> Obstacle:
         """Return the obstacle moved by (dx, dy) (m)."""
@@ -122,9 +123,14 @@ class ObstacleTracking:
 
     Attributes:
         max_report_age_s: Oldest a tracked obstacle's report may be at a decision (s).
+        position_tolerance_m: How far a tracked obstacle's reported position may lag the
+            tracker's latest (m): the ROS tracker keeps a layout until some centre moved
+            this far, so a small move does not cost a re-synthesis; moving obstacles are
+            grown by it too.
     """
 
     max_report_age_s: float = 1.0
+    position_tolerance_m: float = 0.01
 
     def horizon_s(self, tau_s: float) -> float:
         """Return how long after its report a tracked obstacle is avoided (s)."""
@@ -209,7 +215,8 @@ class Scenario:
         obstacles themselves when none moves.
         """
         horizon = self.tracking.horizon_s(self.tau_s)
-        return tuple(o.reach(horizon) for o in self.obstacles)
+        lag = self.tracking.position_tolerance_m
+        return tuple(o.reach(horizon, lag) for o in self.obstacles)
 
     def inflated_obstacles(self) -> tuple[Shape, ...]:
         """Return the abstract obstacles (inflated)."""

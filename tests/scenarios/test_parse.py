@@ -60,6 +60,8 @@ def _edit(path: list[str], value: Any) -> dict[str, Any]:
         (["obstacle_motion", "max_speed_mps"], math.inf, r"'max_speed_mps' must be a finite"),
         (["obstacle_motion", "max_report_age_s"], 0.0, r"'max_report_age_s' must be > 0, got 0.0"),
         (["obstacle_motion", "max_report_age_s"], math.nan, r"'max_report_age_s' must be a finite"),
+        (["obstacle_motion", "position_tolerance_m"], -0.01, r"'position_tolerance_m' must be >="),
+        (["obstacle_motion", "position_tolerance_m"], math.nan, r"'position_tolerance_m' must"),
         (["obstacle_motion", "max_speed_kn"], 1.0, r"unknown key obstacle_motion.'max_speed_kn'"),
         (["obstacles", "1", "max_speed_mps"], -0.2, r"obstacles\[1\].'max_speed_mps' must be >= 0"),
         (["obstacles", "1", "max_speed_mps"], math.nan, r"\[1\].'max_speed_mps' must be a fin"),
