@@ -37,11 +37,12 @@ from collections.abc import Callable
 from pathlib import Path
 
 from hil.bag.errors import ReplayError
-from hil.bag.run_data import load_run
+from hil.bag.run_data import RunData, load_run
 from hil.controllers.symbolic import SymbolicError
-from hil.replay.controllers import ScenarioCache, resolve_scenario
+from hil.replay.controllers import ScenarioCache, ScenarioMismatchError, resolve_scenario
 from hil.replay.decisions import check_decisions
 from hil.replay.intervals import check_contract, judge_intervals
+from hil.replay.lab import NOT_JUDGED, lab_topics, replay_lab
 from hil.replay.options import ReplayOptions
 from hil.replay.regression import Interval, LogReport
 from hil.replay.resim import check_resim
@@ -72,7 +73,9 @@ def replay_log(
     intervals: tuple[Interval, ...] = ()
     try:
         step("load")
-        run = load_run(path)
+        run = load_run(path, options.lab or lab_topics())
+        if run.lab_only:
+            return _replay_lab(run, options, caches, step, wall)
         scenario = resolve_scenario(run, options.scenario)
         controllers = caches.get(scenario)
         step("decisions")
@@ -90,9 +93,52 @@ def replay_log(
         checks.append(check_contract(judged))
         if options.intervals:
             intervals = judged
-    except (ReplayError, SymbolicError, ScenarioError, ValueError, OSError) as err:
-        message = str(err).splitlines()[0] if str(err) else type(err).__name__
-        return LogReport(str(path), error=message, wall_s=time.perf_counter() - wall)
+    except _REFUSED as err:
+        return _error(path, err, wall)
     return LogReport(
         str(path), tuple(checks), run.warnings, "", time.perf_counter() - wall, intervals
+    )
+
+
+_REFUSED = (ReplayError, SymbolicError, ScenarioError, ValueError, OSError)
+"""What makes a log unreadable (ERROR, exit 2) rather than a regression."""
+
+
+def _error(path: str | Path, err: BaseException, wall: float) -> LogReport:
+    message = str(err).splitlines()[0] if str(err) else type(err).__name__
+    return LogReport(str(path), error=message, wall_s=time.perf_counter() - wall)
+
+
+def _replay_lab(
+    run: RunData,
+    options: ReplayOptions,
+    caches: ScenarioCache,
+    step: Callable[[str], None],
+    wall: float,
+) -> LogReport:
+    """Replay a bag holding only the lab's topics (:mod:`hil.replay.lab`)."""
+    if options.scenario is None:
+        raise ScenarioMismatchError(
+            f"{str(run.path)!r} holds only the lab's topics (no hil metadata), so it names no "
+            "scenario: pass --scenario NAME (e.g. paper, coarse or a TOML path)"
+        )
+    scenario = resolve_scenario(run, options.scenario)
+    step("stack")
+    checks, intervals, decisions = replay_lab(
+        run, caches.get(scenario), scenario, options, options.lab_loop
+    )
+    notes = (
+        f"a lab bag (only the lab's topics), replayed with scenario {options.scenario!r}",
+        *run.notes,
+        *(f"not judged without hil's topics: {line}" for line in NOT_JUDGED),
+    )
+    return LogReport(
+        str(run.path),
+        tuple(checks),
+        run.warnings,
+        "",
+        time.perf_counter() - wall,
+        intervals if options.intervals else (),
+        notes,
+        decisions,
     )

@@ -10,6 +10,7 @@ recording.
 from __future__ import annotations
 
 import contextlib
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -31,6 +32,7 @@ from hil.runtime.events import EventCode
 from hil.runtime.loop import Mode, World
 from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer
 from hil.runtime.settings import LoopConfig
+from hil.runtime.stats import RunStats
 from hil.runtime.trace import MemoryLog
 
 FloatArray = NDArray[np.float64]
@@ -113,13 +115,51 @@ def _compare_streams(
     return findings
 
 
-def check_stack(run: RunData, controllers: ControllerCache, options: ReplayOptions) -> Check:
-    """Re-run the full stack on the recorded streams and compare with the recording."""
-    if not len(run.pose) or not run.layouts:
-        return Check("stack", Status.SKIP, "the log holds no poses or no obstacle layout")
+@dataclass(frozen=True)
+class Rerun:
+    """What the stack did when re-run on a run's recorded streams.
+
+    Attributes:
+        log: Everything the re-run stack recorded (estimates, references, decisions, ...).
+        commands: Thruster commands it sent: times (N,) ns and (N, 5) columns.
+        stats: The runtime's statistics (decisions, end reason, ...).
+    """
+
+    log: MemoryLog
+    commands: tuple[IntArray, FloatArray]
+    stats: RunStats
+
+    def estimates(self) -> Series:
+        """Return its estimates: values (N, 6) x m, y m, psi rad, u m/s, v m/s, r rad/s."""
+        t = np.array([e[0] for e in self.log.estimates], dtype=np.int64)
+        v = np.array([np.concatenate([e[1], e[2]]) for e in self.log.estimates]).reshape(-1, 6)
+        return Series(t, v)
+
+    def references(self) -> Series:
+        """Return its velocity references: values (N, 3) u m/s, v m/s, r rad/s."""
+        t = np.array([r[0] for r in self.log.velocity_references], dtype=np.int64)
+        v = np.array([r[1] for r in self.log.velocity_references]).reshape(-1, 3)
+        return Series(t, v)
+
+
+def rerun_stack(
+    run: RunData,
+    controllers: ControllerCache,
+    options: ReplayOptions,
+    ticks_ns: IntArray,
+    loop: LoopConfig,
+) -> Rerun:
+    """Re-run the full stack on the run's recorded pose, IMU and obstacle streams.
+
+    Args:
+        run: The recorded run (it must hold an obstacle layout).
+        controllers: The current code's controllers (one synthesis per layout).
+        options: Delivery delays of the recorded samples.
+        ticks_ns: When the loop ticks (ns), ascending.
+        loop: The loop's timing.
+    """
     world = LogWorld(run, options.log)
     log = MemoryLog()
-    loop = _infer_loop(run)
     runtime = build_runtime(
         controllers.scenario,
         World(world.clock, world.pose, world.imu, world.obstacles, world.thrusters),
@@ -133,9 +173,7 @@ def check_stack(run: RunData, controllers: ControllerCache, options: ReplayOptio
     # A stop from outside (SIGINT/SIGTERM on the vessel or at `hil run`) is part of the
     # recording, not of the stack: it is requested again at the tick that recorded it.
     stop = recorded_stop(run)
-    # Tick when the recording ticked (every tick sends a command or logs its failure):
-    # the sim's fixed period, or a vessel's wall-clock ticks with their jitter.
-    for t_ns in tick_times(run):
+    for t_ns in ticks_ns:
         world.clock.sleep_until(int(t_ns))
         if stop is not None and t_ns >= stop.t_ns and runtime.mode is not Mode.STOPPED:
             runtime.request_stop(stop.text)
@@ -145,13 +183,23 @@ def check_stack(run: RunData, controllers: ControllerCache, options: ReplayOptio
                 world.thrusters.send(ThrusterCommand.zero(int(t_ns)))
             break
         runtime.tick(int(t_ns))
-    stats = runtime.stats
+    return Rerun(log, world.thrusters.as_array(), runtime.stats)
+
+
+def check_stack(run: RunData, controllers: ControllerCache, options: ReplayOptions) -> Check:
+    """Re-run the full stack on the recorded streams and compare with the recording."""
+    if not len(run.pose) or not run.layouts:
+        return Check("stack", Status.SKIP, "the log holds no poses or no obstacle layout")
+    # Tick when the recording ticked (every tick sends a command or logs its failure):
+    # the sim's fixed period, or a vessel's wall-clock ticks with their jitter.
+    rerun = rerun_stack(run, controllers, options, tick_times(run), _infer_loop(run))
+    log, stats, stop = rerun.log, rerun.stats, recorded_stop(run)
     tol = options.tolerance
     est_t = np.array([e[0] for e in log.estimates], dtype=np.int64)
     est = np.array([np.concatenate([e[1], e[2]]) for e in log.estimates]).reshape(-1, 6)
     ref_t = np.array([r[0] for r in log.velocity_references], dtype=np.int64)
     ref = np.array([r[1] for r in log.velocity_references]).reshape(-1, 3)
-    cmd_t, cmd = world.thrusters.as_array()
+    cmd_t, cmd = rerun.commands
     end = run.last_stamp_ns  # what the loop does after the recording's last sample is not compared
     est_t, est = est_t[est_t <= end], est[est_t <= end]
     ref_t, ref = ref_t[ref_t <= end], ref[ref_t <= end]
