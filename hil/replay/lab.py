@@ -141,11 +141,15 @@ def with_scenario_layout(run: RunData, scenario: Scenario) -> RunData:
 
 
 def lab_ticks(run: RunData, loop: LoopConfig) -> IntArray:
-    """Return the re-run's ticks (ns): the loop period over the bag's pose and IMU span."""
+    """Return the re-run's ticks (ns): the loop period from the bag's first pose to its last sample.
+
+    hil's own loop ticks the same way from its first pose, so a lab bag converted from a
+    hil log ticks where the recording did.
+    """
     first = int(run.pose.t_ns[0])
     last = max(int(run.pose.t_ns[-1]), int(run.imu.t_ns[-1]) if len(run.imu) else 0)
     period = round(NS_PER_S / loop.loop_hz)
-    return np.arange(first + period, last + 1, period, dtype=np.int64)
+    return np.arange(first, last + 1, period, dtype=np.int64)
 
 
 def _held(series: Series, t_ns: IntArray) -> tuple[IntArray, FloatArray]:
@@ -256,6 +260,19 @@ def _stack_check(run: RunData, rerun: Rerun, loop: LoopConfig, flown: float | No
     return Check("stack", Status.PASS, summary, findings, metrics)
 
 
+def require_pose(run: RunData) -> None:
+    """Raise unless the lab bag holds poses.
+
+    Raises:
+        ReplayError: It holds none: the stack cannot run without the motion-capture pose.
+    """
+    if not len(run.pose):
+        raise ReplayError(
+            f"{str(run.path)!r} holds only the lab's topics and no pose on {topics.POSE!r}: "
+            "the stack cannot be re-run without the motion-capture pose (nothing judged)"
+        )
+
+
 def replay_lab(
     run: RunData,
     controllers: ControllerCache,
@@ -268,11 +285,7 @@ def replay_lab(
     Raises:
         ReplayError: The bag holds no pose (the stack cannot run without one).
     """
-    if not len(run.pose):
-        raise ReplayError(
-            f"{str(run.path)!r} holds only the lab's topics and no pose on {topics.POSE!r}: "
-            "the stack cannot be re-run without the motion-capture pose (nothing judged)"
-        )
+    require_pose(run)
     run = with_scenario_layout(run, scenario)
     rerun = rerun_stack(run, controllers, options, lab_ticks(run, loop), loop)
     decisions = tuple(rerun.log.decisions)
@@ -347,5 +360,6 @@ __all__ = [
     "load_lab_config",
     "pose_map",
     "replay_lab",
+    "require_pose",
     "with_scenario_layout",
 ]

@@ -42,7 +42,7 @@ from hil.controllers.symbolic import SymbolicError
 from hil.replay.controllers import ScenarioCache, ScenarioMismatchError, resolve_scenario
 from hil.replay.decisions import check_decisions
 from hil.replay.intervals import check_contract, judge_intervals
-from hil.replay.lab import NOT_JUDGED, lab_topics, replay_lab
+from hil.replay.lab import NOT_JUDGED, lab_topics, replay_lab, require_pose
 from hil.replay.options import ReplayOptions
 from hil.replay.regression import Interval, LogReport
 from hil.replay.resim import check_resim
@@ -123,6 +123,7 @@ def _replay_lab(
             "scenario: pass --scenario NAME (e.g. paper, coarse or a TOML path)"
         )
     scenario = resolve_scenario(run, options.scenario)
+    require_pose(run)
     step("stack")
     checks, intervals, decisions = replay_lab(
         run, caches.get(scenario), scenario, options, options.lab_loop
