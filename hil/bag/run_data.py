@@ -569,7 +569,7 @@ def _require_streams(reader: BagReader, lab: LabTopics | None) -> None:
     if not present & (set(lab.renames()) | topics.HIL_TOPICS):
         names = sorted(present)[:5]
         raise NotAHilRunError(
-            f"{str(reader.path)!r} is neither a hil run nor a lab bag: none of hil's topics "
+            f"{str(reader.path)!r} is not a hil run: none of hil's topics "
             f"(e.g. {topics.DECISION!r}) and none of the lab's (e.g. {lab.pose!r}, "
             f"{lab.imu!r}); it has {names!r}"
         )
