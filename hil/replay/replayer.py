@@ -21,6 +21,11 @@ Open loop (default), four checks, each in its own module:
   commands and tracking error must reproduce the recording (not judged, SKIP,
   for a run over ROS, whose per-tick sample arrival is not recorded).
 
+A bag holding only the lab's topics (no ``/hil/...`` topic, no hil metadata) is
+replayed by :mod:`hil.replay.lab` instead: the stack re-run on its pose and IMU, its
+decisions reported, tracking judged from what the bag holds, and what cannot be
+judged without hil's topics said in the report's notes.
+
 With ``ReplayOptions.intervals`` the judged intervals (sizes, tracking error, verdict)
 are kept in the report as well.
 
