@@ -19,7 +19,9 @@ Open loop (default), four checks, each in its own module:
   :class:`hil.runtime.loop.Runtime` on the recorded sensor and obstacle streams
   through the ``log`` adapters; its estimates, decisions, references, thruster
   commands and tracking error must reproduce the recording (not judged, SKIP,
-  for a run over ROS, whose per-tick sample arrival is not recorded).
+  for a run over ROS, whose per-tick sample arrival is not recorded), up to a
+  decision the re-run took the other way at a cell boundary or cost tie within
+  tolerance: accepted, reported, and nothing after it compared.
 
 A bag holding only the lab's topics (no ``/hil/...`` topic, no hil metadata) is
 replayed by :mod:`hil.replay.lab` instead: the stack re-run on its pose and IMU, its
@@ -32,7 +34,8 @@ are kept in the report as well.
 Closed loop (``resim``): the recorded scenario, seed and start (from the suite
 manifest beside the log when there is one, else the first recorded pose) are
 simulated again with the current code and the trajectory, decisions and
-tracking error compared with the recording.
+tracking error compared with the recording (up to a decision taken the other way
+within tolerance, as for ``stack``).
 """
 
 from __future__ import annotations
@@ -92,7 +95,7 @@ def replay_log(
             checks.append(check_stack(run, controllers, options))
         if options.resim:
             step("resim")
-            checks.append(check_resim(run, options.tolerance))
+            checks.append(check_resim(run, options.tolerance, controllers))
         step("contract")
         judged = judge_intervals(run, controllers, scenario, checks)
         checks.append(check_contract(judged))
