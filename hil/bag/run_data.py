@@ -46,6 +46,13 @@ from hil.bag import topics
 from hil.bag.columns import to_columns
 from hil.bag.decoding import to_record
 from hil.bag.errors import BagError, FrameError, NotAHilRunError, OldLogFormatError
+from hil.bag.lab_streams import (
+    LAB_POSE_FRAME,
+    UNSTAMPED_TYPES,
+    LabTopics,
+    thrusters_from_wrenches,
+    unstamped_values,
+)
 from hil.bag.messages import Record
 from hil.bag.reader import BagInfo, BagReader, SkippedMessage
 from hil.bag.run_info import RunInfo
@@ -73,6 +80,9 @@ FIELDS: dict[str, tuple[str, ...]] = {
 
 RECORD_TOPICS = (topics.DECISION, topics.OBSTACLES, topics.EVENTS)
 """Topics read as records (variable size)."""
+
+WRENCH_TOPICS = (topics.THRUSTER_TUNNEL, topics.THRUSTER_PORT, topics.THRUSTER_STARBOARD)
+"""The lab's per-thruster commands, read when ``/hil/thrusters`` is absent."""
 
 _POSE_FRAMES = ("", topics.ARENA_FRAME)
 
@@ -216,6 +226,11 @@ class RunData:
         events: Runtime events and faults, in time order.
         repairs: What the loader left out or reordered, per topic and kind.
         skipped: Every message that did not decode and was left out.
+        lab_only: The bag holds only the lab's topics (no ``/hil/...`` topic, no hil
+            metadata): recorded on the tank by the lab's stack, not by hil, so it
+            has no decisions, layouts or events to compare with.
+        notes: What the loader assumed for a lab bag (the pose transform, log times
+            for unstamped messages), one line each.
     """
 
     path: Path
@@ -231,6 +246,8 @@ class RunData:
     events: tuple[Event, ...]
     repairs: tuple[Repair, ...] = ()
     skipped: tuple[SkippedMessage, ...] = ()
+    lab_only: bool = False
+    notes: tuple[str, ...] = ()
 
     @property
     def run(self) -> RunInfo | None:
@@ -386,10 +403,43 @@ def _polygon(msg: Any) -> FloatArray:
 class _Loader:
     """One pass over a bag: decode, skip bad messages, apply the rule."""
 
-    def __init__(self, reader: BagReader) -> None:
+    def __init__(self, reader: BagReader, lab: LabTopics | None = None) -> None:
         self.reader = reader
+        self.lab = lab
         self.skipped: list[SkippedMessage] = []
         self.repairs: list[Repair] = []
+        self.notes: list[str] = []
+
+    def unstamped(self, topic: str, raws: list[RawMessage]) -> tuple[IntArray, FloatArray]:
+        """Decode a topic of Twist or Wrench messages at their log times (N,), values (N, 3)."""
+        if not raws:
+            return np.zeros(0, np.int64), np.zeros((0, 3))
+        t_ns, values, bad = unstamped_values(raws, self.reader.decode, raws[0].msgtype)
+        self._bad(topic, [SkippedMessage(raw.topic, raw.t_ns, why) for raw, why in bad])
+        return t_ns, values
+
+    def _tidied(self, topic: str, t_ns: IntArray, values: FloatArray) -> Series:
+        keep = _tidy(
+            topic,
+            t_ns,
+            lambda i, j: bool(np.array_equal(values[i], values[j])),
+            self.repairs,
+            report_ties=True,
+        )
+        if len(keep) == len(t_ns) and not np.any(keep[1:] < keep[:-1]):
+            return Series(t_ns, values)
+        return Series(t_ns[keep], values[keep])
+
+    def _to_arena(self, topic: str, values: FloatArray, lab: LabTopics) -> FloatArray:
+        """Map the pose columns (x, y, yaw first) of a ``world_ned`` stream to the arena."""
+        out = values.copy()
+        if lab.pose_to_arena is not None:
+            out[:, :3] = lab.pose_to_arena(values[:, :3])
+        note = f"{topic}: poses in {LAB_POSE_FRAME!r} mapped to the arena"
+        if lab.transform_note:
+            note += f" ({lab.transform_note})"
+        self.notes.append(note)
+        return out
 
     def _bad(self, topic: str, skipped: Sequence[SkippedMessage]) -> None:
         if skipped:
@@ -415,6 +465,10 @@ class _Loader:
         names = FIELDS[topic]
         if not raws:
             return Series.empty(len(names))
+        if raws[0].msgtype in UNSTAMPED_TYPES and len(names) == 3:
+            t_ns, values = self.unstamped(topic, raws)
+            self.notes.append(f"{topic}: {raws[0].msgtype} has no stamp; its log time is used")
+            return self._tidied(topic, t_ns, values) if len(t_ns) else Series.empty(3)
         skipped: list[SkippedMessage] = []
 
         def sample(raw: RawMessage) -> Record | None:
@@ -429,25 +483,28 @@ class _Loader:
         except BagError as err:  # one topic in several frames
             raise FrameError(f"{str(self.reader.path)!r}: {err}") from err
         self._bad(topic, skipped)
-        if topic == topics.POSE and columns.frame_id not in _POSE_FRAMES and len(columns.t_ns):
+        lab_frame = (
+            columns.frame_id == LAB_POSE_FRAME
+            and self.lab is not None
+            and self.lab.pose_to_arena is not None
+        )
+        if (
+            topic == topics.POSE
+            and columns.frame_id not in _POSE_FRAMES
+            and len(columns.t_ns)
+            and not lab_frame
+        ):
             raise FrameError(
                 f"{str(self.reader.path)!r}: poses are in frame {columns.frame_id!r}; "
                 f"hil reads arena-frame poses ({topics.ARENA_FRAME!r})"
+                + (f" or the lab's ({LAB_POSE_FRAME!r})" if self.lab is not None else "")
             )
         if not len(columns.t_ns):
             return Series.empty(len(names))
         values = columns.stack(*names)
-        t_ns = columns.t_ns
-        keep = _tidy(
-            topic,
-            t_ns,
-            lambda i, j: bool(np.array_equal(values[i], values[j])),
-            self.repairs,
-            report_ties=True,
-        )
-        if len(keep) == len(t_ns) and not np.any(keep[1:] < keep[:-1]):
-            return Series(t_ns, values)
-        return Series(t_ns[keep], values[keep])
+        if lab_frame and self.lab is not None and topic in (topics.POSE, topics.ODOM):
+            values = self._to_arena(topic, values, self.lab)
+        return self._tidied(topic, columns.t_ns, values)
 
     def records(
         self,
@@ -497,11 +554,36 @@ def _require_current_format(path: str | Path, custom: Mapping[str, str]) -> None
         )
 
 
-def load_run(path: str | Path) -> RunData:
+def _lab_only(info: BagInfo) -> bool:
+    """Whether the bag holds none of hil's own topics (``/hil/...``) and no hil metadata."""
+    own = {topics.THRUSTERS, *RECORD_TOPICS}
+    return info.run is None and not any(t.name in own for t in info.topics)
+
+
+def _require_streams(reader: BagReader, lab: LabTopics | None) -> None:
+    """Raise unless the bag holds hil's topics, or (with `lab`) one of the lab's."""
+    if lab is None:
+        reader.require_hil_run()
+        return
+    present = {t.name for t in reader.info.topics}
+    if not present & (set(lab.renames()) | topics.HIL_TOPICS):
+        names = sorted(present)[:5]
+        raise NotAHilRunError(
+            f"{str(reader.path)!r} is not a hil run: none of hil's topics "
+            f"(e.g. {topics.DECISION!r}) and none of the lab's (e.g. {lab.pose!r}, "
+            f"{lab.imu!r}); it has {names!r}"
+        )
+
+
+def load_run(path: str | Path, lab: LabTopics | None = None) -> RunData:
     """Read a recorded run (see the module docstring for the rule on imperfect input).
 
     Args:
-        path: Bag directory or ``.mcap`` file written by hil's recorder.
+        path: Bag directory or ``.mcap`` file written by hil's recorder, or (with
+            `lab`) recorded by the lab's stack on its own topics.
+        lab: Where the lab's streams are and how its poses map to the arena
+            (:mod:`hil.bag.lab_streams`); None reads hil's topics only and refuses
+            poses outside the arena frame.
 
     Returns:
         The run's streams as arrays, with what was repaired.
@@ -509,21 +591,35 @@ def load_run(path: str | Path) -> RunData:
     Raises:
         BagNotFoundError: The path does not exist.
         BagFormatError: Not a readable bag (truncated beyond use, foreign storage, ...).
-        NotAHilRunError: A valid log without hil's topics.
-        FrameError: Poses not in the arena frame, or a stream in several frames.
+        NotAHilRunError: A valid log without hil's topics (or the lab's, with `lab`).
+        FrameError: Poses not in the arena frame (nor in the lab's, with a mapping),
+            or a stream in several frames.
         OldLogFormatError: A log of hil format 1 (before the reference-aware controller).
     """
+    renames = lab.renames() if lab is not None else {}
     with BagReader(path) as reader:
-        reader.require_hil_run()
+        _require_streams(reader, lab)
         info = reader.info
         _require_current_format(path, info.custom)
-        read = (*FIELDS, *RECORD_TOPICS)
-        wanted = [t.name for t in info.topics if t.decodable and t.name in read]
+        read = (*FIELDS, *RECORD_TOPICS, *WRENCH_TOPICS)
         by_topic: dict[str, list[RawMessage]] = {name: [] for name in read}
+        # A bag topic is read as the lab's stream it names (the config's names), else
+        # as hil's of the same name; the per-thruster commands only without hil's copy.
+        source = {t.name: renames.get(t.name, t.name) for t in info.topics if t.decodable}
+        skip = set(WRENCH_TOPICS) if topics.THRUSTERS in source.values() else set()
+        wanted = [n for n, stream in source.items() if stream in by_topic and stream not in skip]
         for raw in reader.messages(wanted):  # one pass over the chunks
-            by_topic[raw.topic].append(raw)
-        loader = _Loader(reader)
+            by_topic[source[raw.topic]].append(raw)
+        loader = _Loader(reader, lab)
         series = {topic: loader.series(topic, by_topic[topic]) for topic in FIELDS}
+        if not len(series[topics.THRUSTERS]) and any(by_topic[t] for t in WRENCH_TOPICS):
+            wrenches = [loader.unstamped(t, by_topic[t]) for t in WRENCH_TOPICS]
+            t_ns, values = thrusters_from_wrenches(*wrenches)
+            series[topics.THRUSTERS] = Series(t_ns, values)
+            loader.notes.append(
+                "thruster commands read from the lab's per-thruster Wrench topics at their "
+                "log times (azimuths as magnitude and angle)"
+            )
         decisions = loader.records(
             topics.DECISION, by_topic[topics.DECISION], loader.record, _record_key
         )
@@ -545,4 +641,6 @@ def load_run(path: str | Path) -> RunData:
         events=tuple(r for r in events if isinstance(r, Event)),
         repairs=tuple(loader.repairs),
         skipped=tuple(loader.skipped),
+        lab_only=_lab_only(info),
+        notes=tuple(loader.notes),
     )

@@ -16,6 +16,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from hil.commands.lab_args import add_lab_arguments, load_for_view
+
 HELP = "Open a recorded run in Rerun (write an .rrd, or --spawn the viewer)."
 
 _PROG = "hil inspect"
@@ -51,6 +53,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="leave out the winning set (skips re-synthesizing the controller)",
     )
+    add_lab_arguments(parser)
 
 
 def default_output(log: Path) -> Path:
@@ -81,7 +84,6 @@ def run(args: argparse.Namespace) -> int:
         0 on success; 2 when the log cannot be read or the output not written.
     """
     from hil.bag.errors import ReplayError
-    from hil.bag.run_data import load_run
     from hil.commands.common import missing_display
 
     log = Path(args.log)
@@ -96,16 +98,13 @@ def run(args: argparse.Namespace) -> int:
     if output is not None and log.exists() and _inside(output, log):
         return _error(f"output {str(output)!r} would write into the log {str(log)!r}")
     try:
-        data = load_run(log).require_motion()
+        data, scenario, notes = load_for_view(log, args.scenario, args.config)
     except (ReplayError, ValueError) as err:
         return _error(str(err).splitlines()[0] if str(err) else type(err).__name__)
-    for warning in data.warnings:  # damaged files and what the loader left out or reordered
-        _note(warning)
-    from hil.views.controller_view import controller_view, scenario_for
-
-    scenario, note = scenario_for(data)
-    if note:
+    for note in notes:  # damaged files, repairs, what a lab bag's reading assumed
         _note(note)
+    from hil.views.controller_view import controller_view
+
     view = None
     if scenario is not None and not args.no_winning_set:
         view = controller_view(data, scenario, budget_s=args.synthesis_budget)

@@ -11,6 +11,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from hil.commands.lab_args import add_lab_arguments, load_for_view
+
 HELP = "Draw a recorded run: arena with trajectory and hull, velocity tracking (PNG)."
 
 _PROG = "hil plot"
@@ -35,6 +37,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="S",
         help="seconds between two hull outlines (default 5)",
     )
+    add_lab_arguments(parser)
 
 
 def _error(message: str) -> int:
@@ -49,7 +52,6 @@ def run(args: argparse.Namespace) -> int:
         0 on success; 2 when the log cannot be read or the picture not written.
     """
     from hil.bag.errors import ReplayError
-    from hil.bag.run_data import load_run
 
     log, output = Path(args.log), Path(args.output)
     if output.suffix.lower() != ".png":
@@ -64,16 +66,12 @@ def run(args: argparse.Namespace) -> int:
     if args.hull_every is not None and not args.hull_every > 0:
         return _error(f"--hull-every must be positive, got {args.hull_every!r}")
     try:
-        data = load_run(log).require_motion()
+        data, scenario, notes = load_for_view(log, args.scenario, args.config)
     except (ReplayError, ValueError) as err:
         return _error(str(err).splitlines()[0] if str(err) else type(err).__name__)
-    from hil.views.controller_view import scenario_for
     from hil.views.plot import DEFAULT_DPI, HULL_EVERY_S, save_run_figure
 
-    for warning in data.warnings:  # damaged files and what the loader left out or reordered
-        print(f"{_PROG}: note: {warning}", file=sys.stderr)
-    scenario, note = scenario_for(data)
-    if note:
+    for note in notes:  # damaged files, repairs, what a lab bag's reading assumed
         print(f"{_PROG}: note: {note}", file=sys.stderr)
     try:
         save_run_figure(

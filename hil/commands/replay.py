@@ -22,6 +22,8 @@ from hil.commands.replay_progress import ReplayProgress
 
 if TYPE_CHECKING:
     from hil.replay.controllers import ScenarioCache
+    from hil.replay.options import ReplayOptions
+    from hil.replay.regression import LogReport
 
 HELP = "replay recorded runs through the current code; non-zero exit on any regression"
 
@@ -101,7 +103,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--scenario",
         default=None,
         metavar="SCENARIO",
-        help="replay with this scenario instead of the one each log names",
+        help="replay with this scenario instead of the one each log names (needed for a "
+        "bag holding only the lab's topics)",
+    )
+    parser.add_argument(
+        "--config",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="vessel config (TOML, as for `hil vessel`): the lab's topic names, the arena "
+        "transform and the loop rate for bags holding only the lab's topics (default: the "
+        "lab's topics, identity transform, 20 Hz)",
     )
 
 
@@ -160,20 +172,31 @@ def _one_line(err: BaseException) -> str:
     return text[0] if text else type(err).__name__
 
 
-def _write_replay_rrd(log: Path, folder: Path, caches: ScenarioCache, scenario: str | None) -> str:
-    """Write the recording with its replayed decisions to an .rrd; return what happened."""
+def _write_replay_rrd(
+    log: Path, folder: Path, caches: ScenarioCache, options: ReplayOptions, report: LogReport
+) -> str:
+    """Write the recording with its replayed decisions to an .rrd; return what happened.
+
+    A lab bag's recording gets the scenario's layout and the decisions its stack
+    re-run took (kept in the report); a hil log's, its decisions taken again.
+    """
     from hil.bag.errors import ReplayError
     from hil.bag.run_data import load_run
     from hil.replay.controllers import resolve_scenario
     from hil.replay.decisions import replayed_decisions
+    from hil.replay.lab import lab_topics, with_scenario_layout
     from hil.views.rerun_export import write_rrd
 
     out = folder / f"{log.name}.replay.rrd"
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        recorded = load_run(log).require_motion()
-        chosen = resolve_scenario(recorded, scenario)
-        replayed = replayed_decisions(recorded, caches.get(chosen))
+        recorded = load_run(log, options.lab or lab_topics()).require_motion()
+        chosen = resolve_scenario(recorded, options.scenario)
+        if recorded.lab_only:
+            recorded = with_scenario_layout(recorded, chosen)
+            replayed = list(report.replayed)
+        else:
+            replayed = replayed_decisions(recorded, caches.get(chosen))
         stats = write_rrd(recorded, out, chosen, None, replayed=replayed)
     except (ReplayError, ValueError, OSError) as err:
         return f"not written: {_one_line(err)}"
@@ -192,6 +215,7 @@ def run(args: argparse.Namespace) -> int:
     """Replay every log, print the reports; return 0, 1 (regression) or 2 (bad log)."""
     from hil.adapters.log import LogConfig
     from hil.replay.controllers import ScenarioCache
+    from hil.replay.lab import load_lab_config
     from hil.replay.options import ReplayOptions, Tolerance
     from hil.replay.regression import (
         LogReport,
@@ -208,6 +232,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         tolerance = Tolerance.parse(args.tolerance)
         log_config = LogConfig(pose_delay_ns=round(args.pose_delay_ms * 1e6))
+        lab, lab_loop = load_lab_config(args.config)
     except ValueError as err:
         print(f"hil replay: {_one_line(err)}", file=sys.stderr)
         return 2
@@ -218,6 +243,8 @@ def run(args: argparse.Namespace) -> int:
         scenario=args.scenario,
         log=log_config,
         intervals=args.jsonl is not None,
+        lab=lab,
+        lab_loop=lab_loop,
     )
     jsonl: TextIO | None = None
     if args.jsonl is not None:
@@ -256,7 +283,7 @@ def run(args: argparse.Namespace) -> int:
             progress.done()
             emit(render(report))
             if args.rerun is not None and not report.error:
-                emit(f"  rerun: {_write_replay_rrd(path, args.rerun, caches, args.scenario)}")
+                emit(f"  rerun: {_write_replay_rrd(path, args.rerun, caches, options, report)}")
             if report.error:
                 print(f"hil replay: {report.path}: {report.error}", file=sys.stderr)
             if jsonl is not None:

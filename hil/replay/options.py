@@ -12,7 +12,9 @@ from pathlib import Path
 from typing import Any
 
 from hil.adapters.log import LogConfig
+from hil.bag.lab_streams import LabTopics
 from hil.core.tracking import AXES
+from hil.runtime.settings import LoopConfig
 
 _AXES = AXES
 
@@ -105,6 +107,9 @@ class ReplayOptions:
         cache_dir: Abstraction-table cache (None: the default).
         intervals: Also judge every interval between decisions
             (:mod:`hil.replay.intervals`; ``--jsonl``).
+        lab: Where a lab bag's streams are and how its poses map to the arena
+            (:func:`hil.replay.lab.lab_topics`); None: the lab's defaults.
+        lab_loop: The loop a lab bag's stack re-run ticks at.
     """
 
     tolerance: Tolerance = field(default_factory=Tolerance)
@@ -114,3 +119,5 @@ class ReplayOptions:
     log: LogConfig = field(default_factory=LogConfig)
     cache_dir: Path | None = None
     intervals: bool = False
+    lab: LabTopics | None = None
+    lab_loop: LoopConfig = field(default_factory=LoopConfig)

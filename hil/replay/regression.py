@@ -20,6 +20,8 @@ from dataclasses import dataclass, field
 from typing import Any
 from xml.etree import ElementTree as ET
 
+from hil.core.records import Decision
+
 NS_PER_S = 1_000_000_000
 
 
@@ -193,6 +195,10 @@ class LogReport:
         wall_s: Wall time of the replay (s).
         intervals: The intervals between decisions, judged one by one (empty when
             not asked for or when the log holds no decisions).
+        notes: What the reader should know to read the report (for a lab bag: the
+            transform used, what cannot be judged without hil's topics), one line each.
+        replayed: Decisions the replay took where the log holds none to compare
+            with (a lab bag's stack re-run), for the ``.rrd``.
     """
 
     path: str
@@ -201,6 +207,8 @@ class LogReport:
     error: str = ""
     wall_s: float = 0.0
     intervals: tuple[Interval, ...] = ()
+    notes: tuple[str, ...] = ()
+    replayed: tuple[Decision, ...] = ()
 
     @property
     def status(self) -> Status:
@@ -239,6 +247,7 @@ class LogReport:
             "error": self.error,
             "wall_s": round(self.wall_s, 3),
             "warnings": list(self.warnings),
+            "notes": list(self.notes),
             "checks": [c.to_dict() for c in self.checks],
         }
 
@@ -284,13 +293,14 @@ def render(report: LogReport, max_findings: int = 5) -> str:
         lines.append(f"  error: {report.error}")
     for check in report.checks:
         lines.append(f"  [{_MARK[check.status]:>5}] {check.name}: {check.summary}")
-        shown = check.findings if check.status is not Status.PASS else ()
+        shown = check.findings  # a passing check's are figures (a lab bag's decisions)
         for finding in shown[:max_findings]:
             where = f"{time_s(finding.t_ns)}: " if finding.t_ns is not None else ""
             lines.append(f"          {where}{finding.message}")
         if len(shown) > max_findings:
             lines.append(f"          ... and {len(shown) - max_findings} more")
     lines.extend(f"  warning: {warning}" for warning in report.warnings)
+    lines.extend(f"  note: {note}" for note in report.notes)
     return "\n".join(lines)
 
 

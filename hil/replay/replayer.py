@@ -19,7 +19,14 @@ Open loop (default), four checks, each in its own module:
   :class:`hil.runtime.loop.Runtime` on the recorded sensor and obstacle streams
   through the ``log`` adapters; its estimates, decisions, references, thruster
   commands and tracking error must reproduce the recording (not judged, SKIP,
-  for a run over ROS, whose per-tick sample arrival is not recorded).
+  for a run over ROS, whose per-tick sample arrival is not recorded), up to a
+  decision the re-run took the other way at a cell boundary or cost tie within
+  tolerance: accepted, reported, and nothing after it compared.
+
+A bag holding only the lab's topics (no ``/hil/...`` topic, no hil metadata) is
+replayed by :mod:`hil.replay.lab` instead: the stack re-run on its pose and IMU, its
+decisions reported, tracking judged from what the bag holds, and what cannot be
+judged without hil's topics said in the report's notes.
 
 With ``ReplayOptions.intervals`` the judged intervals (sizes, tracking error, verdict)
 are kept in the report as well.
@@ -27,7 +34,8 @@ are kept in the report as well.
 Closed loop (``resim``): the recorded scenario, seed and start (from the suite
 manifest beside the log when there is one, else the first recorded pose) are
 simulated again with the current code and the trajectory, decisions and
-tracking error compared with the recording.
+tracking error compared with the recording (up to a decision taken the other way
+within tolerance, as for ``stack``).
 """
 
 from __future__ import annotations
@@ -37,11 +45,12 @@ from collections.abc import Callable
 from pathlib import Path
 
 from hil.bag.errors import ReplayError
-from hil.bag.run_data import load_run
+from hil.bag.run_data import RunData, load_run
 from hil.controllers.symbolic import SymbolicError
-from hil.replay.controllers import ScenarioCache, resolve_scenario
+from hil.replay.controllers import ScenarioCache, ScenarioMismatchError, resolve_scenario
 from hil.replay.decisions import check_decisions
 from hil.replay.intervals import check_contract, judge_intervals
+from hil.replay.lab import NOT_JUDGED, lab_topics, replay_lab, require_pose
 from hil.replay.options import ReplayOptions
 from hil.replay.regression import Interval, LogReport
 from hil.replay.resim import check_resim
@@ -72,7 +81,9 @@ def replay_log(
     intervals: tuple[Interval, ...] = ()
     try:
         step("load")
-        run = load_run(path)
+        run = load_run(path, options.lab or lab_topics())
+        if run.lab_only:
+            return _replay_lab(run, options, caches, step, wall)
         scenario = resolve_scenario(run, options.scenario)
         controllers = caches.get(scenario)
         step("decisions")
@@ -84,15 +95,59 @@ def replay_log(
             checks.append(check_stack(run, controllers, options))
         if options.resim:
             step("resim")
-            checks.append(check_resim(run, options.tolerance))
+            checks.append(check_resim(run, options.tolerance, controllers))
         step("contract")
         judged = judge_intervals(run, controllers, scenario, checks)
         checks.append(check_contract(judged))
         if options.intervals:
             intervals = judged
-    except (ReplayError, SymbolicError, ScenarioError, ValueError, OSError) as err:
-        message = str(err).splitlines()[0] if str(err) else type(err).__name__
-        return LogReport(str(path), error=message, wall_s=time.perf_counter() - wall)
+    except _REFUSED as err:
+        return _error(path, err, wall)
     return LogReport(
         str(path), tuple(checks), run.warnings, "", time.perf_counter() - wall, intervals
+    )
+
+
+_REFUSED = (ReplayError, SymbolicError, ScenarioError, ValueError, OSError)
+"""What makes a log unreadable (ERROR, exit 2) rather than a regression."""
+
+
+def _error(path: str | Path, err: BaseException, wall: float) -> LogReport:
+    message = str(err).splitlines()[0] if str(err) else type(err).__name__
+    return LogReport(str(path), error=message, wall_s=time.perf_counter() - wall)
+
+
+def _replay_lab(
+    run: RunData,
+    options: ReplayOptions,
+    caches: ScenarioCache,
+    step: Callable[[str], None],
+    wall: float,
+) -> LogReport:
+    """Replay a bag holding only the lab's topics (:mod:`hil.replay.lab`)."""
+    if options.scenario is None:
+        raise ScenarioMismatchError(
+            f"{str(run.path)!r} holds only the lab's topics (no hil metadata), so it names no "
+            "scenario: pass --scenario NAME (e.g. paper, coarse or a TOML path)"
+        )
+    scenario = resolve_scenario(run, options.scenario)
+    require_pose(run)
+    step("stack")
+    checks, intervals, decisions = replay_lab(
+        run, caches.get(scenario), scenario, options, options.lab_loop
+    )
+    notes = (
+        f"a lab bag (only the lab's topics), replayed with scenario {options.scenario!r}",
+        *run.notes,
+        *(f"not judged without hil's topics: {line}" for line in NOT_JUDGED),
+    )
+    return LogReport(
+        str(run.path),
+        tuple(checks),
+        run.warnings,
+        "",
+        time.perf_counter() - wall,
+        intervals if options.intervals else (),
+        notes,
+        decisions,
     )

@@ -3,7 +3,11 @@
 The recorded scenario, seed and start (from the suite manifest beside the log
 when there is one, else the run specification in the metadata, else the first
 recorded pose) are simulated again and the trajectory, decisions and tracking
-error compared with the recording.
+error compared with the recording: positions within ``Tolerance.resim_position_m``,
+decisions exactly up to one taken the other way at a cell boundary or a cost tie within
+tolerance (:func:`hil.replay.decisions.compare_rerun_decisions`), which is accepted and
+reported and after which nothing is compared (the closed loop then flies another
+legitimate trajectory).
 """
 
 from __future__ import annotations
@@ -13,12 +17,12 @@ import math
 
 import numpy as np
 
-from hil.bag.run_data import RunData
-from hil.core.tracking import tracking_error
-from hil.replay.controllers import ScenarioMismatchError
-from hil.replay.decisions import decision_findings
+from hil.bag.run_data import RunData, Series
+from hil.replay.controllers import ControllerCache, ScenarioMismatchError
+from hil.replay.decisions import BOUNDARY, TIE, compare_rerun_decisions
 from hil.replay.options import Tolerance
 from hil.replay.regression import Check, Finding, Status, time_s
+from hil.replay.stack import compared_until, divergence_note, tracking_of, until
 from hil.replay.tracking_checks import tracking_findings
 from hil.runs.sim_run import SimRunSpec, run_in_sim, spec_from_json
 from hil.runtime.settings import LoopConfig
@@ -67,8 +71,22 @@ def recorded_spec(run: RunData) -> tuple[SimRunSpec, str]:
     ), "first recorded pose (start not in the metadata)"
 
 
-def check_resim(run: RunData, tolerance: Tolerance) -> Check:
-    """Re-simulate the run with the current code and compare it with the recording."""
+def check_resim(run: RunData, tolerance: Tolerance, controllers: ControllerCache) -> Check:
+    """Re-simulate the run with the current code and compare it with the recording.
+
+    The trajectory is compared within ``Tolerance.resim_position_m``, the decisions
+    exactly unless the re-simulation took one the other way within the boundary or
+    cost-tie tolerance (:func:`hil.replay.decisions.compare_rerun_decisions`): that one is
+    accepted and reported and, the closed loop then following another legitimate
+    trajectory, the trajectory, decisions and tracking error are compared up to it only.
+    Whether the run docked is still compared: the guarantee holds on either branch.
+
+    Args:
+        run: The recorded run.
+        tolerance: Thresholds.
+        controllers: The current code's controllers for the recorded layouts (to judge a
+            decision taken the other way).
+    """
     try:
         spec, source = recorded_spec(run)
     except (ScenarioMismatchError, ValueError) as err:
@@ -79,13 +97,17 @@ def check_resim(run: RunData, tolerance: Tolerance) -> Check:
     est = np.array([np.concatenate([e[1], e[2]]) for e in log.estimates]).reshape(-1, 6)
     ref_t = np.array([r[0] for r in log.velocity_references], dtype=np.int64)
     ref = np.array([r[1] for r in log.velocity_references]).reshape(-1, 3)
+    decision_diffs, divergence = compare_rerun_decisions(run, log.decisions, controllers)
+    # Without a divergence the whole re-simulation is compared, past the recording's end.
+    est_end, out_end = compared_until(divergence, int(np.iinfo(np.int64).max))
     exact = source.endswith("entry")
     # From the first (noisy) pose the re-simulation drifts by the sensor noise: the
     # trajectory and the decisions are then compared for information only.
     drift = Status.FAIL if exact else Status.WARN
     graded: list[tuple[Status, Finding]] = []
-    t, i, j = np.intersect1d(run.estimate.t_ns, est_t, return_indices=True)
-    deviation = np.hypot(*(est[j, :2] - run.estimate.values[i, :2]).T) if t.size else np.zeros(0)
+    rec_est = until(run.estimate, est_end)
+    t, i, j = np.intersect1d(rec_est.t_ns, est_t, return_indices=True)
+    deviation = np.hypot(*(est[j, :2] - rec_est.values[i, :2]).T) if t.size else np.zeros(0)
     worst = float(deviation.max()) if deviation.size else math.nan
     if deviation.size and worst > tolerance.resim_position_m:
         k = int(np.flatnonzero(deviation > tolerance.resim_position_m)[0])
@@ -111,14 +133,13 @@ def check_resim(run: RunData, tolerance: Tolerance) -> Check:
                 ),
             )
         )
-    decision_diffs = decision_findings(run.decisions, log.decisions)
     graded += [(drift, f) for f in decision_diffs]
     graded += [
         (Status.FAIL if exact else Status.WARN, f)
         for f in tracking_findings(
             "resim",
-            run.tracking_error(),
-            tracking_error(est_t, est[:, 3:6], ref_t, ref),
+            tracking_of(until(run.estimate, out_end), until(run.reference, out_end)),
+            tracking_of(until(Series(est_t, est), out_end), until(Series(ref_t, ref), out_end)),
             tolerance.relative if exact else max(tolerance.relative, 0.25),
         )
     ]
@@ -129,21 +150,28 @@ def check_resim(run: RunData, tolerance: Tolerance) -> Check:
         "max_deviation_m": worst,
         "docked": summary.docked,
         "decision_differences": len(decision_diffs),
+        "boundary_decisions": int(divergence is not None and divergence.kind == BOUNDARY),
+        "cost_ties": int(divergence is not None and divergence.kind == TIE),
+        "compared_until_ns": None if divergence is None else divergence.t_ns,
+        "divergence": None if divergence is None else divergence.to_dict(),
     }
+    note = divergence_note(divergence)
+    accepted = () if divergence is None else (Finding(divergence.describe(), divergence.t_ns),)
     if not findings:
         return Check(
             "resim",
             Status.PASS,
             f"re-simulation reproduces the recording (start from {source}; "
-            f"largest deviation {worst:.4f} m)",
-            (),
+            f"largest deviation {worst:.4f} m){note}",
+            accepted,
             metrics,
         )
     return Check(
         "resim",
         Status.worst([g for g, _ in graded]),
         f"re-simulation differs from the recording, first at "
-        f"{time_s(findings[0].t_ns)} (start from {source})",
+        f"{time_s(findings[0].t_ns)} (start from {source}){note}",
         findings,
         metrics,
     )
+

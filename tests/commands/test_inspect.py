@@ -14,8 +14,9 @@ from hil.bag.reader import describe
 from hil.commands import inspect
 from hil.runs.sim_run import SimRunSpec, run_in_sim
 from hil.runtime.settings import LoopConfig
+from tests.bag.bag_streams import FOREIGN_BAGS
 
-FOREIGN = Path("/work/shared/foreign_bags")
+FOREIGN = FOREIGN_BAGS  # ../shared next to the repository root
 
 
 @pytest.fixture(scope="module")

@@ -3,13 +3,22 @@
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+from hil.bag.run_data import load_run
 from hil.core.records import Decision
 from hil.replay.controllers import ScenarioCache
-from hil.replay.decisions import consistency, is_cost_tie, recompute
+from hil.replay.decisions import (
+    BOUNDARY_TOLERANCE,
+    check_decisions,
+    consistency,
+    is_cost_tie,
+    recompute,
+)
+from hil.replay.regression import Status
 from hil.runs.sim_run import default_start
 from hil.runtime.assembly import layout_from_scenario
 from hil.scenarios import load_scenario
@@ -97,3 +106,44 @@ def test_inputs_of_equal_cost_tie(caches: ScenarioCache) -> None:
     assert is_cost_tie(controller, a, b, np.zeros(3))
     c = next(k for k, row in enumerate(grid) if abs(row[0] - grid[a][0]) > 0.01)
     assert not is_cost_tie(controller, a, c, np.zeros(3))
+
+
+def _across(locate: object, state: np.ndarray, beyond: float) -> np.ndarray:
+    """Return `state` moved along x to `beyond` m past the nearest cell boundary above it."""
+    cell = locate(state)  # type: ignore[operator]
+    lo, hi = float(state[0]), float(state[0]) + 0.5
+    assert locate(np.array([hi, state[1], state[2]])) != cell  # type: ignore[operator]
+    for _ in range(80):  # bisect to the boundary, to the last bit
+        mid = 0.5 * (lo + hi)
+        if locate(np.array([mid, state[1], state[2]])) == cell:  # type: ignore[operator]
+            lo = mid
+        else:
+            hi = mid
+    return np.array([hi + beyond, state[1], state[2]])
+
+
+@pytest.mark.parametrize(
+    ("beyond", "accepted"), [(0.0, True), (BOUNDARY_TOLERANCE / 2, True), (1e-6, False)]
+)
+def test_a_decision_on_a_cell_boundary_is_accepted_either_way(
+    caches: ScenarioCache, beyond: float, accepted: bool
+) -> None:
+    log = Path(__file__).resolve().parents[2] / "logs" / "coarse-high-seed2"
+    run = load_run(log)
+    controllers = caches.get(load_scenario("coarse"))
+    k = next(i for i, d in enumerate(run.decisions) if d.winning and d.chosen_index >= 0)
+    d = run.decisions[k]
+    controller = controllers(layout_from_scenario(load_scenario("coarse")))
+    moved = _across(controller.locate, np.array(d.state), beyond)
+    assert controller.locate(moved) != d.cell  # the recorded state now lies in the next cell
+    tampered = (*run.decisions[:k], dataclasses.replace(d, state=tuple(moved)),
+                *run.decisions[k + 1:])
+    check = check_decisions(dataclasses.replace(run, decisions=tampered), controllers)
+    if accepted:
+        assert check.status is Status.PASS, check.findings
+        assert check.metrics["boundary_decisions"] == 1
+        assert "cell boundary" in check.summary
+    else:
+        assert check.status is Status.FAIL
+        assert check.metrics["boundary_decisions"] == 0
+        assert "cell" in check.findings[0].data["differ"]

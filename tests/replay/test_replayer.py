@@ -69,7 +69,10 @@ def test_changed_chosen_input_is_a_regression_at_its_time(
     assert first.data["recorded"]["chosen"] == tampered.chosen_index
     assert first.data["replayed"]["chosen"] == decision.chosen_index
     assert first.data["replayed"]["safe"] == sorted(decision.safe_input_indices)
-    assert report.check("stack").findings[0].t_ns == decision.t_ns
+    stack = report.check("stack")  # the re-run chose otherwise: no tie, no boundary
+    assert stack.status is Status.FAIL
+    assert stack.metrics["divergence"] is None
+    assert stack.findings[0].t_ns == decision.t_ns
 
 
 def test_raised_tracking_error_is_a_regression_at_its_time(
