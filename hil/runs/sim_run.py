@@ -155,10 +155,18 @@ def build_runtime(
                                        if scenario.tracks_obstacles else None))
 
 
-def synthesizer_for(scenario: Scenario, cache_dir: Path | None = None) -> Synthesizer:
-    """Return a synthesizer holding the scenario grid's tables (from the disk cache)."""
+def synthesizer_for(
+    scenario: Scenario, cache_dir: Path | None = None, threads: int = 1
+) -> Synthesizer:
+    """Return a synthesizer holding the scenario grid's tables (from the disk cache).
+
+    Args:
+        scenario: Whose grid, inputs and budget.
+        cache_dir: Table cache folder (default: the package's).
+        threads: Kernel threads per solve (see :class:`Synthesizer`).
+    """
     tables, _ = SymbolicProblem.from_scenario(scenario).tables(cache_dir=cache_dir)
-    return Synthesizer(tables)
+    return Synthesizer(tables, threads=threads)
 
 
 LiveView = Callable[[Scenario, RunLog], RunLog]
@@ -227,7 +235,7 @@ def simulate(
         thruster_outages=spec.thruster_outages,
     ), max_duration_s=spec.loop.max_duration_s + 10.0)
     world = World(sim.clock, sim.pose, sim.imu, sim.obstacles, sim.thrusters)
-    synthesizer = synthesizer_for(scenario, spec.cache_dir)
+    synthesizer = synthesizer_for(scenario, spec.cache_dir, spec.loop.synthesis_threads)
     recorder: Recorder | None = None
     if spec.out_dir is not None:
         # The full specification goes into the metadata, so a replay re-simulates exactly.

@@ -28,6 +28,7 @@ yaw_rad = 0.25
 [loop]
 loop_hz = 25
 pose_timeout_s = 0.3
+synthesis_threads = 3
 """))
     assert config.scenario == "coarse"
     assert config.ros.domain_id == 7
@@ -37,6 +38,7 @@ pose_timeout_s = 0.3
     assert config.ros.transform.origin_north_m == 1.5
     assert config.loop.loop_hz == 25.0
     assert isinstance(config.loop.loop_hz, float)
+    assert config.loop.synthesis_threads == 3
 
 
 @pytest.mark.parametrize(
@@ -45,6 +47,7 @@ pose_timeout_s = 0.3
         ('[ros]\nqos_depht = 3\n', r"unknown key ros.'qos_depht'"),
         ('[loop]\nloop_hz = "fast"\n', r"loop.'loop_hz' must be a finite number"),
         ('[loop]\nloop_hz = -5.0\n', r"loop_hz.*must be positive"),
+        ('[loop]\nsynthesis_threads = 0\n', r"synthesis_threads.*whole number >= 1, got 0"),
         ('[ros]\ndomain_id = 1.5\n', r"ros.'domain_id' must be an integer"),
         ('[ros]\nuse_sim_time = 1\n', r"ros.'use_sim_time' must be true or false"),
         ('[ros.transform]\nyaw_rad = nan\n', r"ros.transform.'yaw_rad' must be a finite number"),
