@@ -14,7 +14,9 @@ it drives the vessel in the tank:
   (geometry_msgs/Wrench, normalized: the tunnel's force.x, each azimuth's thrust
   vector (force.x, force.y) in the body frame);
 * with ``--clock``, publishes ``/clock`` (ROS sim time from 0) and runs ``--speed``
-  times faster than real time; without it, stamps are the wall clock.
+  times faster than real time (``--lockstep-s LEAD``: never more than LEAD simulated
+  seconds past the latest thruster command, so that a stack starved of CPU sees a
+  slower clock instead of late ticks); without it, stamps are the wall clock.
 
 It records its own true state, one row per physics cycle, to a CSV file in the lab
 frame: ``t_ns`` (the clock of the message stamps), ``north_m``, ``east_m``,
@@ -274,12 +276,15 @@ class Vessel:
             "tunnel": (0.0, 0.0), "port": (0.0, 0.0), "starboard": (0.0, 0.0)}
         self.commands = 0
         self.commanded = threading.Event()
+        self.k = 0  # the physics cycle in progress (set by the loop)
+        self.last_command_k = 0  # the cycle in which the latest command arrived
 
     def on_wrench(self, name: str, msg: Any) -> None:
         """Keep the latest normalized wrench of one thruster."""
         with self._lock:
             self._wire[name] = (float(msg.force.x), float(msg.force.y))
             self.commands += 1
+            self.last_command_k = self.k
         self.commanded.set()
 
     def wire(self) -> tuple[float, tuple[float, float], tuple[float, float]]:
@@ -367,8 +372,11 @@ def run(args: argparse.Namespace) -> int:
             clock_pub.publish(msg)
 
     pose_every = max(1, round(100.0 / args.pose_hz))
+    lead_cycles = None if args.lockstep_s is None else max(1, round(args.lockstep_s * 100.0))
     imu_every = max(1, round(100.0 / args.imu_hz))
     clock_mode = f"/clock at {args.speed:g}x" if args.clock else "wall time"
+    if lead_cycles is not None:
+        clock_mode += f", lockstep {lead_cycles * CYCLE_NS / NS_PER_S:g} s"
     log(f"domain {args.domain_id}, {clock_mode}, start {tuple(args.start)} (world_ned, deg), "
         f"velocity {tuple(args.start_velocity)}, truth to {args.out}")
     out = Path(args.out)
@@ -392,7 +400,7 @@ def run(args: argparse.Namespace) -> int:
                     pose_pub.publish(vessel.pose_message(PoseWithCovarianceStamped, stamp))
             log("released")
         t0_ns = 0 if args.clock else time.time_ns()
-        k = 0
+        k = behind = 0
         wall0 = time.monotonic()
         next_status = wall0 + 5.0
         tau = thrust(vessel.act, vessel.azimuth_rate)
@@ -407,6 +415,12 @@ def run(args: argparse.Namespace) -> int:
             if args.duration is not None and k * CYCLE_NS >= args.duration * NS_PER_S:
                 vessel.stopped_by = f"{args.duration:g} s simulated"
                 break
+            if lead_cycles is not None:
+                # Lockstep: never run more than the lead past the stack's latest command,
+                # so a starved stack sees a slower clock rather than late ticks.
+                while (not vessel.stop.is_set()
+                       and k - vessel.last_command_k >= lead_cycles):
+                    time.sleep(0.0005)
             tunnel, port, starboard = vessel.wire()
             vessel.act = actuators_step(vessel.act, tunnel, port, starboard,
                                         CYCLE_NS / NS_PER_S, vessel.azimuth_rate)
@@ -414,17 +428,23 @@ def run(args: argparse.Namespace) -> int:
             vessel.x = advance(vessel.x, tau, tau_next, CYCLE_NS / NS_PER_S)
             tau = tau_next
             k += 1
+            vessel.k = k
             publish_clock(t0_ns + k * CYCLE_NS)
             if time.monotonic() >= next_status:
                 next_status += 5.0
                 fh.flush()
                 log(f"t={k * CYCLE_NS / NS_PER_S:6.1f} s  at ({vessel.x[0]:+.2f} N, "
                     f"{vessel.x[1]:+.2f} E, {math.degrees(vessel.x[2]):+.0f} deg)  "
-                    f"thruster messages {vessel.commands}")
-            # Pace: simulated time at `speed` x wall time (wall time: speed 1).
+                    f"thruster messages {vessel.commands}, pacing resets {behind}")
+            # Pace: simulated time at `speed` x wall time (wall time: speed 1). Behind by
+            # more than a cycle (this process starved of CPU), drop the debt instead of
+            # racing to catch up: a burst of /clock would outrun the stack's loop.
             ahead_s = k * CYCLE_NS / NS_PER_S / args.speed - (time.monotonic() - wall0)
             if ahead_s > 0:
                 time.sleep(ahead_s)
+            elif args.clock and ahead_s < -CYCLE_NS / NS_PER_S:
+                wall0 += ahead_s
+                behind += 1
     log(f"stopped ({vessel.stopped_by or 'done'}): {rows} true states in {out}")
     executor.shutdown()
     node.destroy_node()
@@ -450,6 +470,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--clock", action="store_true", help="publish /clock (ROS sim time)")
     parser.add_argument("--speed", type=_positive, default=1.0,
                         help="simulated seconds per wall second (needs --clock above 1)")
+    parser.add_argument("--lockstep-s", type=_positive, default=None, metavar="LEAD",
+                        help="with --clock: run at most LEAD simulated seconds past the "
+                             "latest thruster command (the clock waits for a slow stack)")
     parser.add_argument("--pose-hz", type=_positive, default=100.0, help="mocap pose rate")
     parser.add_argument("--imu-hz", type=_positive, default=100.0, help="IMU rate")
     parser.add_argument("--pose-noise-m", type=float, default=0.001)
@@ -464,6 +487,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.speed != 1.0 and not args.clock:
         parser.error("--speed other than 1 needs --clock")
+    if args.lockstep_s is not None and not args.clock:
+        parser.error("--lockstep-s needs --clock (wall time cannot wait)")
     if not 0 <= args.domain_id <= 232:
         parser.error(f"--domain-id must be 0..232, got {args.domain_id!r}")
     return run(args)

@@ -176,7 +176,7 @@ def judge_log_on_truth(
     *,
     dt_s: float = 0.01,
     tick_s: float = 0.05,
-    cache_dir: Path | None = None,
+    controllers: ControllerCache | None = None,
 ) -> TruthJudgement:
     """Judge a recorded run's decisions against a true trajectory recorded beside it.
 
@@ -186,7 +186,8 @@ def judge_log_on_truth(
         transform: The vessel config's ``[ros.transform]`` (lab to arena).
         dt_s: Step of the uniform grid the truth is resampled onto (s).
         tick_s: The run's loop period (s): intervals longer than tau + tick_s / 2 are late.
-        cache_dir: Abstraction-table cache for the re-synthesis.
+        controllers: The scenario's controllers (re-synthesized per recorded layout);
+            default: a fresh cache (pass one to share syntheses between runs).
 
     Returns:
         The counts and worst sizes, what could not be judged, and how far the received
@@ -205,14 +206,16 @@ def judge_log_on_truth(
             raise TruthError(
                 f"the true states span t_ns {int(arena.t_ns[0])}..{int(arena.t_ns[-1])}, the "
                 f"decisions {first}..{last}: not the same clock, or not the same run?")
-    controllers: dict[int, Controller] = {}
+    if controllers is None or controllers.scenario != scenario:
+        controllers = ControllerCache(scenario)
+    by_version: dict[int, Controller] = {}
     unjudged: list[str] = []
-    for decision, got in decision_controllers(run, ControllerCache(scenario, cache_dir)):
+    for decision, got in decision_controllers(run, controllers):
         if isinstance(got, str):
             unjudged.append(f"decision at t={decision.t_ns} ns: {got}")
         else:
-            controllers.setdefault(decision.controller_version, got.controller)
+            by_version.setdefault(decision.controller_version, got.controller)
     t_s, eta = arena.resampled(dt_s)
-    violations = judge_run(scenario, run.decisions, controllers, t_s, eta, tick_s=tick_s)
+    violations = judge_run(scenario, run.decisions, by_version, t_s, eta, tick_s=tick_s)
     position, heading = _pose_offsets(run, arena)
     return TruthJudgement(violations, tuple(unjudged), position, heading)

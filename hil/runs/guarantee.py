@@ -230,7 +230,8 @@ def judge_run(
     if n == 0:
         return GuaranteeViolations(decisions=len(decisions))
     t_s = np.asarray(t_s, dtype=np.float64)
-    dt = float(t_s[1] - t_s[0]) if n > 1 else 0.01
+    # Over the whole span: one step of epoch seconds carries float rounding of ~1e-7 s.
+    dt = float(t_s[-1] - t_s[0]) / (n - 1) if n > 1 else 0.01
     safety = _safety(scenario, t_s, eta, motions)
     # Rows by time from the first state; a decision before it is judged from the first.
     t0_ns = round(float(t_s[0]) * NS_PER_S)
