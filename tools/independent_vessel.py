@@ -388,16 +388,21 @@ def run(args: argparse.Namespace) -> int:
         # Held at the start until the stack commands (or at once): clock and pose frozen.
         if args.hold_until_commanded:
             log("holding at the start pose until the first thruster command")
-            # One pose per new subscriber (and a reminder every 5 s): repeats of a frozen
-            # stamp would only be refused as stale by the stack's filter.
+            # In wall time the mocap keeps seeing the held hull: poses at their rate. On
+            # a frozen clock, one pose per new subscriber (and a reminder every 5 s):
+            # repeats of one stamp would only be refused as stale by the stack's filter.
             seen, next_reminder = 0, time.monotonic()
-            while not vessel.stop.is_set() and not vessel.commanded.wait(0.1):
-                stamp = 0 if args.clock else time.time_ns()
-                publish_clock(stamp)
+            wait_s = 0.1 if args.clock else 1.0 / args.pose_hz
+            while not vessel.stop.is_set() and not vessel.commanded.wait(wait_s):
+                if not args.clock:
+                    pose_pub.publish(vessel.pose_message(PoseWithCovarianceStamped,
+                                                         time.time_ns()))
+                    continue
+                publish_clock(0)
                 subscribers = pose_pub.get_subscription_count()
                 if subscribers > seen or time.monotonic() >= next_reminder:
                     seen, next_reminder = subscribers, time.monotonic() + 5.0
-                    pose_pub.publish(vessel.pose_message(PoseWithCovarianceStamped, stamp))
+                    pose_pub.publish(vessel.pose_message(PoseWithCovarianceStamped, 0))
             log("released")
         t0_ns = 0 if args.clock else time.time_ns()
         k = behind = 0

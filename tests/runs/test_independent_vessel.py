@@ -193,8 +193,8 @@ def _check(outcome: Outcome, label: str) -> None:
           f"worst {g.worst_tube_exit_m:.4f} m; successor misses {g.successor_misses}, worst "
           f"{g.worst_successor_miss_m:.4f} m; value not decreasing {g.value_not_decreasing}; "
           f"hull contacts {g.hull_contacts}; outside {g.hull_outside_arena}), late "
-          f"{g.late_intervals} (longest loop gap {stall_s:.2f} s), worst estimation "
-          f"{g.worst_estimation_m * 1000:.1f} mm; "
+          f"{g.late_intervals} (longest loop gap {stall_s:.2f} s), estimation misses "
+          f"{g.estimation_misses} (worst {g.worst_estimation_m * 1000:.1f} mm); "
           f"received pose vs truth {judged.pose_offset_m * 1000:.1f} mm / "
           f"{math.degrees(judged.heading_offset_rad):.2f} deg; hil's plant from the true "
           f"state over 2 s: {gap_mean * 1000:.1f} mm mean, {gap_max * 1000:.1f} mm max")
