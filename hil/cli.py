@@ -37,6 +37,7 @@ COMMANDS: dict[str, str] = {
     "sim-vessel": "sim_vessel",
     "synth": "synth",
     "replay": "replay",
+    "judge": "judge",
     "record-suite": "record_suite",
     "info": "info",
     "inspect": "inspect",

@@ -6,7 +6,8 @@
 :mod:`~hil.replay.stack` (the stack re-run) and :mod:`~hil.replay.resim` (closed loop),
 with the thresholds of :mod:`~hil.replay.options` and the controllers of
 :mod:`~hil.replay.controllers`; :mod:`hil.replay.regression` judges the differences,
-:mod:`hil.replay.pytest_plugin` turns a folder of bags into test cases. May import every
+:mod:`hil.replay.pytest_plugin` turns a folder of bags into test cases,
+:mod:`hil.replay.truth` judges a run on a true trajectory recorded outside hil. May import every
 layer below (runs, runtime, adapters, bag, sim, controllers, model, scenarios, core);
 views and commands build on it.
 """

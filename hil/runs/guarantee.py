@@ -215,7 +215,9 @@ def judge_run(
         decisions: The run's decisions, in time order.
         controllers: The controller behind each ``controller_version``; a decision
             whose version is missing is judged for safety only.
-        t_s: Times of the true states (s), shape (N,), uniformly spaced from 0.
+        t_s: Times of the true states (s), shape (N,), uniformly spaced, on the clock of
+            the decisions' stamps (a simulated run's from 0; a recorded true trajectory's
+            from wherever it starts, see :mod:`hil.replay.truth`).
         eta: True poses (x m, y m, psi rad), shape (N, 3) indexed [time, axis].
         motions: Scheduled obstacle motions (the real obstacles' true positions).
         tick_s: Loop period (s): an interval counts as late past tau + tick_s / 2.
@@ -227,9 +229,13 @@ def judge_run(
     n = len(eta)
     if n == 0:
         return GuaranteeViolations(decisions=len(decisions))
-    dt = float(t_s[1] - t_s[0]) if n > 1 else 0.01
-    safety = _safety(scenario, np.asarray(t_s, dtype=np.float64), eta, motions)
-    rows = [min(round(d.t_ns / NS_PER_S / dt), n - 1) for d in decisions]
+    t_s = np.asarray(t_s, dtype=np.float64)
+    # Over the whole span: one step of epoch seconds carries float rounding of ~1e-7 s.
+    dt = float(t_s[-1] - t_s[0]) / (n - 1) if n > 1 else 0.01
+    safety = _safety(scenario, t_s, eta, motions)
+    # Rows by time from the first state; a decision before it is judged from the first.
+    t0_ns = round(float(t_s[0]) * NS_PER_S)
+    rows = [min(max(round((d.t_ns - t0_ns) / NS_PER_S / dt), 0), n - 1) for d in decisions]
     out: dict[str, int] = dict.fromkeys(
         ("inflated_obstacle", "hull_contacts", "hull_outside_arena", "intervals", "tube_exits",
          "successor_misses", "value_not_decreasing", "late_intervals", "estimation_misses"), 0)

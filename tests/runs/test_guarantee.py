@@ -157,6 +157,24 @@ def test_the_judge_sees_a_dropped_decision_and_a_displaced_interval(
     assert expected > 2.0 - 1.0  # the tube is well under 1 m tall
 
 
+def test_a_truth_on_the_epoch_clock_is_judged_as_from_zero(
+    coarse_run: tuple[SimRunSpec, SimOutcome, MemoryLog]
+) -> None:
+    # A wall-time run stamps truth and decisions on the epoch; the rows are found by time
+    # from the first true state, not from 0. Starting the truth 1 s late (a decision
+    # before it is judged from its first state) changes only the first interval.
+    _, outcome, log = coarse_run
+    t_s, eta = _eta(outcome)
+    base = judge_run(outcome.scenario, log.decisions, outcome.controllers, t_s, eta)
+    epoch_ns = 1_700_000_000 * 1_000_000_000
+    shifted = [replace(d, t_ns=d.t_ns + epoch_ns) for d in log.decisions]
+    judged = judge_run(outcome.scenario, shifted, outcome.controllers, t_s + epoch_ns / 1e9, eta)
+    assert judged == base
+    late = judge_run(outcome.scenario, log.decisions, outcome.controllers, t_s[100:], eta[100:])
+    assert late.intervals == base.intervals
+    assert late.violations == base.violations == 0
+
+
 # ---------------------------------------------------------------- moving starts
 
 
