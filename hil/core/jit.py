@@ -13,10 +13,11 @@ of older sources are pruned.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import shutil
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any, TypeVar, cast
 
@@ -70,3 +71,25 @@ def njit(fn: F) -> F:
 def njit_parallel(fn: F) -> F:
     """Like :func:`njit` but allows `numba.prange` loops over threads."""
     return cast(F, numba.njit(cache=True, nogil=True, parallel=True)(fn))
+
+
+@contextlib.contextmanager
+def cache_lock() -> Iterator[None]:
+    """Hold this source tree's cache folder exclusively (blocks until free).
+
+    Worker processes that start together warm under it: the first compiles and
+    writes the kernels, the others wait and then load them, instead of all compiling
+    the same kernels at once and racing to write the same cache files. Where file
+    locks are missing (not POSIX) it holds nothing.
+    """
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - Windows
+        yield
+        return
+    with (CACHE_DIR / ".warm.lock").open("a") as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
