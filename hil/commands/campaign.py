@@ -54,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
 
     from hil.commands.campaign_report import report
     from hil.controllers.symbolic import SymbolicError
-    from hil.runs.backends import open_executor
+    from hil.runs.backends import open_executor, require_backend
     from hil.runs.campaign import (
         StartRegion,
         campaign_specs,
@@ -72,6 +72,11 @@ def run(args: argparse.Namespace) -> int:
 
     if args.n < 1 or args.workers < 1:
         print("hil campaign: -n and --workers must be at least 1", file=sys.stderr)
+        return 2
+    try:
+        require_backend(executor_choice(args))
+    except ExecutorError as err:
+        print(f"hil campaign: {err}", file=sys.stderr)
         return 2
     console = Console(stderr=args.json)
     try:

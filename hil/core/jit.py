@@ -93,3 +93,23 @@ def cache_lock() -> Iterator[None]:
             yield
         finally:
             fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+def warm_once(key: str, warm: Callable[[], None]) -> None:
+    """Run `warm` (code that compiles kernels); the first process to do so holds the lock.
+
+    Double-checked: once a warm of `key` has finished against this cache, later ones
+    only load kernels (no write, no race) and run side by side; until then they queue
+    on :func:`cache_lock`, so one process compiles and the others load its kernels.
+
+    Args:
+        key: Names what `warm` compiles (e.g. the function and its arguments).
+        warm: The warm-up.
+    """
+    marker = CACHE_DIR / f".warmed-{hashlib.sha256(key.encode()).hexdigest()[:16]}"
+    if marker.exists():
+        warm()
+        return
+    with cache_lock():
+        warm()
+        marker.touch()

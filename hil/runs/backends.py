@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from hil.runs.errors import ExecutorError
 from hil.runs.executor import Executor, LocalExecutor, Warm
 
-__all__ = ["BACKENDS", "DASK_MISSING", "ExecutorChoice", "open_executor"]
+__all__ = ["BACKENDS", "DASK_MISSING", "ExecutorChoice", "open_executor", "require_backend"]
 
 DASK_MISSING = ("--dask and --scheduler need Dask, which is not installed; install the extra: "
                 "pip install -e '.[dask]' (python3 tools/dev.py installs it)")
@@ -57,6 +57,19 @@ BACKENDS: dict[str, Callable[[ExecutorChoice, Warm | None], Executor]] = {
     "dask": _open_dask,
 }
 """Backend name -> how to open it."""
+
+
+def require_backend(choice: ExecutorChoice) -> None:
+    """Check, before any work, that `choice`'s backend can be imported.
+
+    Raises:
+        ExecutorError: Dask asked for but not installed (:data:`DASK_MISSING`).
+    """
+    if choice.backend == "dask":
+        try:
+            import hil.runs.dask_executor  # noqa: F401 - imported to see that Dask is there
+        except ImportError as err:
+            raise ExecutorError(DASK_MISSING) from err
 
 
 def open_executor(choice: ExecutorChoice, warm: Warm | None = None) -> Executor:

@@ -4,7 +4,7 @@ Either a running cluster (``dask scheduler`` and ``dask worker`` processes on th
 lab's machines, reached at ``tcp://HOST:PORT``) or one started here on local
 processes (one thread each: a run is Python-bound and would hold the GIL). Every
 worker, including one that joins or restarts later, warms once before its first
-run (a :class:`WarmPlugin`). Dask reschedules the runs of a worker that dies; a run
+run (:class:`~hil.runs.executor.WarmedCall`). Dask reschedules the runs of a worker that dies; a run
 whose workers keep dying ends as ``KilledWorker`` and is retried by the fan-out a
 bounded number of times. When the scheduler goes away, the futures are cancelled:
 that is :meth:`DaskExecutor.cluster_lost`.
@@ -24,13 +24,13 @@ from types import TracebackType
 from typing import Any, TypeVar
 
 import distributed
-from distributed import Client, LocalCluster, WorkerPlugin
+from distributed import Client, LocalCluster
 from distributed.client import FutureCancelledError
 
 from hil.runs.errors import ExecutorError
-from hil.runs.executor import Warm, warm_worker
+from hil.runs.executor import Warm, WarmedCall
 
-__all__ = ["ClusterLostError", "DaskExecutor", "WarmPlugin"]
+__all__ = ["ClusterLostError", "DaskExecutor"]
 
 S = TypeVar("S")
 R = TypeVar("R")
@@ -38,30 +38,14 @@ R = TypeVar("R")
 _CAPACITY_REFRESH_S = 2.0
 CONNECT_TIMEOUT_S = 20.0
 """How long to try reaching a scheduler (s)."""
+CLOSE_TIMEOUT_S = 5.0
+"""How long to wait for a clean disconnect (s)."""
 WORKERS_TIMEOUT_S = 120.0
 """How long to wait for the first worker to join the scheduler (s)."""
 
 
 class ClusterLostError(ExecutorError):
     """The scheduler went away (or cancelled the run): no run can finish now."""
-
-
-class WarmPlugin(WorkerPlugin):  # type: ignore[misc]  # distributed is untyped here
-    """Warms each worker once, before its first run (numba, abstraction tables).
-
-    Args:
-        warm: What to run, picklable (shipped to the workers).
-    """
-
-    idempotent = False
-
-    def __init__(self, warm: Warm | None) -> None:
-        self.warm = warm
-
-    def setup(self, worker: distributed.Worker) -> None:
-        """Warm this worker (Dask calls it once per worker process)."""
-        del worker
-        warm_worker(self.warm)
 
 
 class DaskExecutor:
@@ -72,6 +56,9 @@ class DaskExecutor:
             cluster of `workers` processes, one thread each.
         workers: Processes of the local cluster (unused with a scheduler).
         warm: Called once on every worker before its first run.
+        workers_timeout_s: How long to wait for the first worker (s).
+        connect_timeout_s: How long to try reaching the scheduler, and to try again
+            once it is lost before the runs in flight count as lost (s).
 
     Raises:
         ExecutorError: The scheduler cannot be reached, or no worker joined it within
@@ -79,7 +66,8 @@ class DaskExecutor:
     """
 
     def __init__(self, scheduler: str | None, workers: int = 1, warm: Warm | None = None,
-                 workers_timeout_s: float = WORKERS_TIMEOUT_S) -> None:
+                 workers_timeout_s: float = WORKERS_TIMEOUT_S,
+                 connect_timeout_s: float = CONNECT_TIMEOUT_S) -> None:
         self._cluster: LocalCluster | None = None
         self._address = scheduler
         try:
@@ -88,13 +76,13 @@ class DaskExecutor:
                                              processes=True, dashboard_address=":0")
                 self._client = Client(self._cluster)
             else:
-                self._client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
+                self._client = Client(scheduler, timeout=connect_timeout_s)
         except (OSError, TimeoutError) as err:
             self._close_cluster()
             where = scheduler or "a local cluster"
             raise ExecutorError(f"cannot reach the Dask scheduler at {where}: {err}") from err
+        self._warm = warm
         try:
-            self._client.register_plugin(WarmPlugin(warm), name="hil-warm")
             self._client.wait_for_workers(1, timeout=workers_timeout_s)
         except (OSError, TimeoutError) as err:
             self.close()
@@ -106,6 +94,22 @@ class DaskExecutor:
         self._lock = threading.Lock()
         self._capacity = 1
         self._capacity_at = -math.inf  # never read yet
+
+    def wait_for_workers(self, n: int, timeout_s: float = WORKERS_TIMEOUT_S) -> None:
+        """Block until `n` workers have joined.
+
+        Raises:
+            ExecutorError: They did not within `timeout_s`.
+        """
+        try:
+            self._client.wait_for_workers(n, timeout=timeout_s)
+        except TimeoutError as err:
+            raise ExecutorError(f"fewer than {n} Dask workers joined in {timeout_s} s") from err
+
+    @property
+    def client(self) -> Client:
+        """Return the Dask client (to inspect the cluster: workers, tasks in flight)."""
+        return self._client
 
     @property
     def description(self) -> str:
@@ -133,7 +137,7 @@ class DaskExecutor:
     def submit(self, fn: Callable[[S], R], item: S) -> Future[R]:
         """Submit ``fn(item)`` (never deduplicated: every call runs)."""
         result: Future[R] = Future()
-        remote = self._client.submit(fn, item, pure=False)
+        remote = self._client.submit(WarmedCall(fn, self._warm), item, pure=False)
         with self._lock:
             self._futures[result] = remote
         remote.add_done_callback(lambda done: self._settle(done, result))
@@ -172,10 +176,7 @@ class DaskExecutor:
         """Disconnect (and stop the local cluster, if this started one)."""
         client = getattr(self, "_client", None)
         if client is not None:
-            # A scheduler already gone has no plugin to drop.
-            with contextlib.suppress(Exception):
-                client.unregister_worker_plugin("hil-warm")
-            client.close()
+            client.close(timeout=CLOSE_TIMEOUT_S)
         self._close_cluster()
 
     def _close_cluster(self) -> None:

@@ -12,25 +12,28 @@ finished) from a run that failed. Two backends, chosen from :data:`BACKENDS` by
   started here on local processes; an optional extra (``pip install 'hil[dask]'``).
 
 Each worker process calls the job's `warm` once before its first run (numba's
-kernels loaded or compiled, the abstraction tables read), under the cache's lock
-(:func:`hil.core.jit.cache_lock`), so workers that start together compile once and
+kernels loaded or compiled, the abstraction tables read: :class:`WarmedCall`);
+until one warm has finished against the cache, they take turns
+(:func:`hil.core.jit.warm_once`), so workers that start together compile once and
 never race on the cache.
 """
 
 from __future__ import annotations
 
-import contextlib
+import functools
 import multiprocessing
 import signal
+import threading
 from collections.abc import Callable
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass
 from types import TracebackType
-from typing import Protocol, TypeVar
+from typing import Generic, Protocol, TypeVar
 
-from hil.core.jit import cache_lock
+from hil.core.jit import warm_once
 
-__all__ = ["Executor", "LocalExecutor", "Warm", "warm_worker"]
+__all__ = ["Executor", "LocalExecutor", "Warm", "WarmedCall", "ignore_sigint", "warm_key"]
 
 S = TypeVar("S")
 R = TypeVar("R")
@@ -73,18 +76,55 @@ class Executor(Protocol):
                  traceback: TracebackType | None) -> None: ...
 
 
-def warm_worker(warm: Warm | None) -> None:
-    """Prepare a worker process: leave Ctrl-C to the parent, then warm under the cache lock.
+def ignore_sigint() -> None:
+    """Leave Ctrl-C to the parent (a pool process's initializer).
 
     Ctrl-C in a terminal reaches every process of the foreground group; the parent
-    decides (the running runs finish), so a worker ignores it.
+    decides (the runs in flight finish), so a worker ignores it.
     """
-    # ValueError: not the main thread (a Dask worker's plugin may run elsewhere).
-    with contextlib.suppress(ValueError):
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
-    if warm is not None:
-        with cache_lock():
-            warm()
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def warm_key(warm: Warm) -> str:
+    """Name a warm-up by its function and arguments (stable across processes)."""
+    args = ""
+    if isinstance(warm, functools.partial):
+        args = repr((warm.args, sorted(warm.keywords.items())))
+        warm = warm.func
+    return f"{getattr(warm, '__module__', '')}.{getattr(warm, '__qualname__', repr(warm))}{args}"
+
+
+_WARMED: set[str] = set()
+_WARM_LOCK = threading.Lock()
+
+
+@dataclass(frozen=True, slots=True)
+class WarmedCall(Generic[S, R]):
+    """`fn`, preceded in each process by one `warm` (what an executor ships to a worker).
+
+    The warm runs inside the first call a process gets, in the worker's own thread:
+    a Dask worker's event loop stays free to answer the scheduler while numba
+    compiles, and a worker that joins (or restarts) later warms too. Workers of one
+    machine take turns until the first warm has filled the cache
+    (:func:`hil.core.jit.warm_once`).
+
+    Attributes:
+        fn: The call.
+        warm: Prepares the process; None for nothing.
+    """
+
+    fn: Callable[[S], R]
+    warm: Warm | None = None
+
+    def __call__(self, item: S) -> R:
+        """Warm this process if it is the first call here, then return ``fn(item)``."""
+        if self.warm is not None:
+            key = warm_key(self.warm)
+            with _WARM_LOCK:
+                if key not in _WARMED:
+                    warm_once(key, self.warm)
+                    _WARMED.add(key)
+        return self.fn(item)
 
 
 class LocalExecutor:
@@ -105,7 +145,6 @@ class LocalExecutor:
             raise ValueError(f"workers must be at least 1, got {workers!r}")
         self._workers = workers
         self._warm = warm
-        self._warmed = False
         self._pool: ProcessPoolExecutor | None = None
 
     @property
@@ -127,31 +166,28 @@ class LocalExecutor:
     def _new_pool(self) -> ProcessPoolExecutor:
         context = multiprocessing.get_context("spawn")
         return ProcessPoolExecutor(max_workers=self._workers, mp_context=context,
-                                   initializer=warm_worker, initargs=(self._warm,))
+                                   initializer=ignore_sigint)
 
     def submit(self, fn: Callable[[S], R], item: S) -> Future[R]:
         """Run ``fn(item)``: at once in this process, or queued to the pool."""
+        call = WarmedCall(fn, self._warm)
         if self._workers == 1:
-            if not self._warmed and self._warm is not None:
-                with cache_lock():
-                    self._warm()
-            self._warmed = True
             future: Future[R] = Future()
             try:
-                future.set_result(fn(item))
+                future.set_result(call(item))
             except Exception as err:  # the run's failure, reported with its spec
                 future.set_exception(err)
             return future
         if self._pool is None:
             self._pool = self._new_pool()
         try:
-            return self._pool.submit(fn, item)
+            return self._pool.submit(call, item)
         except BrokenProcessPool:
             # A worker died: the pool refuses work; its runs fail with BrokenProcessPool
             # and are resubmitted here, to a fresh pool.
             self._pool.shutdown(wait=False, cancel_futures=True)
             self._pool = self._new_pool()
-            return self._pool.submit(fn, item)
+            return self._pool.submit(call, item)
 
     def worker_lost(self, error: BaseException) -> bool:
         """Whether a pool process died under the call."""
