@@ -63,6 +63,8 @@ class Cluster:
     def ensure(self) -> None:
         """Start what is not running: the scheduler, and workers up to two."""
         if self.scheduler is None or self.scheduler.poll() is not None:
+            self.stop()  # workers of a lost scheduler: start afresh
+            self.workers = []
             self.scheduler = _start(["scheduler", "--host", "127.0.0.1", "--port",
                                      str(self.port), "--no-dashboard"])
         self.workers = [w for w in self.workers if w.poll() is None]
@@ -175,6 +177,31 @@ def test_a_worker_killed_mid_campaign_loses_no_run(
     assert sorted(ended) == list(range(len(SPECS)))
     assert [_without_wall_clock(r) for r in out.results if r is not None] == \
         [_without_wall_clock(r) for r in local_runs]
+
+
+def test_replay_on_the_cluster_ships_the_bags_and_gives_the_local_reports(
+        cluster: Cluster) -> None:
+    from hil.replay.job import REPLAY_JOB, replay_task, task_for
+    from hil.replay.options import ReplayOptions
+    from hil.replay.regression import LogReport
+
+    logs = [ROOT / "logs" / "coarse-default-seed0", ROOT / "logs" / "coarse-faults-seed4"]
+    options = ReplayOptions(stack=False)
+    tasks = [task_for(log, options, ship=True) for log in logs]
+    assert all(t.files for t in tasks)
+
+    def verdicts(report: LogReport) -> object:
+        # Not the wall time, nor how many controllers this process had to synthesize.
+        return (report.path, report.error, report.warnings,
+                [(c.name, c.status, c.findings) for c in report.checks])
+
+    local = [replay_task(task_for(log, options, ship=False)) for log in logs]
+    assert not any(r.error for r in local)
+    with _open(cluster) as dask:
+        out = fan_out(REPLAY_JOB, tasks, dask)
+    assert out.complete
+    assert [verdicts(r) for r in out.results if r is not None] == [verdicts(r) for r in local]
+    assert [r.path for r in out.results if r is not None] == [str(log) for log in logs]
 
 
 def test_a_lost_scheduler_keeps_the_finished_runs_and_a_resume_finishes(
