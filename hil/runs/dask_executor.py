@@ -120,8 +120,12 @@ class DaskExecutor:
 
     @property
     def dashboard(self) -> str | None:
-        """Return the dashboard's link, when the scheduler serves one."""
-        link = self._client.dashboard_link
+        """Return the dashboard's link, when the scheduler serves one (it needs bokeh)."""
+        try:
+            services = self._client.scheduler_info(n_workers=0).get("services", {})
+        except (OSError, TimeoutError):
+            return None
+        link = self._client.dashboard_link if "dashboard" in services else None
         return str(link) if link else None
 
     def capacity(self) -> int:
