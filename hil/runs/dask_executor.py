@@ -128,6 +128,11 @@ class DaskExecutor:
         link = self._client.dashboard_link if "dashboard" in services else None
         return str(link) if link else None
 
+    @property
+    def batches(self) -> bool:
+        """Return True: a Dask task costs milliseconds of scheduler and client time."""
+        return True
+
     def capacity(self) -> int:
         """Return the threads of every worker now in the cluster (refreshed every 2 s)."""
         now = time.monotonic()

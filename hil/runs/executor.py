@@ -55,6 +55,10 @@ class Executor(Protocol):
     def dashboard(self) -> str | None:
         """Return the address of a live dashboard, if the backend has one."""
 
+    @property
+    def batches(self) -> bool:
+        """Whether several short runs should go to a worker in one call (costly calls)."""
+
     def capacity(self) -> int:
         """Return how many calls can run at once now (at least 1)."""
 
@@ -158,6 +162,11 @@ class LocalExecutor:
     def dashboard(self) -> str | None:
         """Return None: local processes have no dashboard."""
         return None
+
+    @property
+    def batches(self) -> bool:
+        """Return False: a call to a pool process costs well under a millisecond."""
+        return False
 
     def capacity(self) -> int:
         """Return the number of processes."""
