@@ -23,6 +23,7 @@ from concurrent.futures import Future
 from types import TracebackType
 from typing import Any, TypeVar
 
+import dask
 import distributed
 from distributed import Client, LocalCluster
 from distributed.client import FutureCancelledError
@@ -38,6 +39,10 @@ R = TypeVar("R")
 _CAPACITY_REFRESH_S = 2.0
 CONNECT_TIMEOUT_S = 20.0
 """How long to try reaching a scheduler (s)."""
+WORKER_CONFIG = {"distributed.worker.profile.enabled": False}
+"""Settings of the local cluster's workers: no statistical profiler, which samples the
+running task's stack every 10 ms and takes the GIL from a Python-bound run to do it
+(for `dask worker` elsewhere: DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED=False)."""
 CLOSE_TIMEOUT_S = 5.0
 """How long to wait for a clean disconnect (s)."""
 WORKERS_TIMEOUT_S = 120.0
@@ -72,8 +77,9 @@ class DaskExecutor:
         self._address = scheduler
         try:
             if scheduler is None:
-                self._cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
-                                             processes=True, dashboard_address=":0")
+                with dask.config.set(WORKER_CONFIG):
+                    self._cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
+                                                 processes=True, dashboard_address=":0")
                 self._client = Client(self._cluster)
             else:
                 self._client = Client(scheduler, timeout=connect_timeout_s)
