@@ -20,7 +20,7 @@ import types
 import typing
 from functools import cache
 from pathlib import Path
-from typing import Any, TypeVar, cast
+from typing import Any, TypeVar, overload
 
 __all__ = ["CodecError", "from_jsonable", "to_jsonable"]
 
@@ -60,13 +60,21 @@ def _hints(cls: type) -> dict[str, Any]:
     return typing.get_type_hints(cls)
 
 
-def from_jsonable(kind: type[T] | Any, data: Any) -> T:
+@overload
+def from_jsonable(kind: type[T], data: Any) -> T: ...
+
+
+@overload
+def from_jsonable(kind: Any, data: Any) -> Any: ...
+
+
+def from_jsonable(kind: Any, data: Any) -> Any:
     """Rebuild a value of type `kind` from :func:`to_jsonable`'s form.
 
     Raises:
         CodecError: `data` does not fit `kind` (naming both).
     """
-    return cast(T, _decode(kind, data))
+    return _decode(kind, data)
 
 
 def _decode(kind: Any, data: Any) -> Any:

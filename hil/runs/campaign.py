@@ -147,7 +147,8 @@ def warm_sim(scenarios: tuple[str, ...]) -> None:
 
 
 def _decode_run(data: object) -> CampaignRun:
-    return from_jsonable(CampaignRun, data)
+    summary, violations = from_jsonable(CampaignRun, data)
+    return summary, violations
 
 
 def sim_job(name: str, scenarios: Iterable[str]) -> Job[SimRunSpec, CampaignRun]:
