@@ -17,6 +17,7 @@ BENCHMARKS = {
     "recorder": "bench.recorder",
     "replay": "bench.replay",
     "rerun_export": "bench.rerun_export",
+    "dask": "bench.dask",
 }
 
 

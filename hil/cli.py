@@ -33,6 +33,7 @@ class CommandModule(Protocol):
 COMMANDS: dict[str, str] = {
     "run": "run",
     "campaign": "campaign",
+    "sweep": "sweep",
     "vessel": "vessel",
     "sim-vessel": "sim_vessel",
     "synth": "synth",

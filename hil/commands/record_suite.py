@@ -16,15 +16,17 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import multiprocessing
 import re
 import shutil
 import sys
 import tempfile
 from collections.abc import Iterable
 from dataclasses import dataclass, replace
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING
+
+from hil.commands.executor_cli import add_executor_arguments, executor_choice
 
 if TYPE_CHECKING:  # the CLI imports every command for --help: keep numba out of it
     from hil.bag.messages import Record
@@ -129,9 +131,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="NAME",
         help="regenerate only this run (repeatable)",
     )
-    parser.add_argument(
-        "--workers", type=int, default=1, metavar="K", help="simulate in K processes"
-    )
+    add_executor_arguments(parser, 1)
     parser.add_argument("--list", action="store_true", help="list the runs and exit")
 
 
@@ -265,13 +265,37 @@ def _manifest(runs: Iterable[SuiteRun], existing: dict[str, object]) -> dict[str
     return {"format": 1, "runs": dict(sorted(entries.items()))}
 
 
-def _record_into(run: SuiteRun, staging: str) -> str:
-    return str(record_run(run, Path(staging)))
+def record_files(run: SuiteRun) -> dict[str, bytes]:
+    """Record `run` in a temporary folder; return its bag's files by relative path.
+
+    The job of :func:`hil.runs.fanout.fan_out`: a worker may be another machine, so the
+    bag comes back as bytes and is written into the suite here.
+    """
+    with tempfile.TemporaryDirectory(prefix="hil-record-") as tmp:
+        path = record_run(run, Path(tmp))
+        return {str(p.relative_to(path)): p.read_bytes()
+                for p in sorted(path.rglob("*")) if p.is_file()}
+
+
+def _encode_run(run: SuiteRun) -> object:
+    from hil.runs.sim_run import spec_to_json
+
+    return {"name": run.name, **spec_to_json(run.spec)}
+
+
+def _encode_files(files: dict[str, bytes]) -> object:
+    return sorted(files)
+
+
+def _no_decode(data: object) -> dict[str, bytes]:
+    raise TypeError(f"recorded bags are not read back from a results file: {data!r}")
 
 
 def run(args: argparse.Namespace) -> int:
     """Regenerate the suite; return 0, or 2 on bad arguments or a failed run."""
     from hil.replay.resim import MANIFEST
+    from hil.runs.backends import require_backend
+    from hil.runs.errors import ExecutorError
 
     if args.list:
         for item in suite():
@@ -280,6 +304,11 @@ def run(args: argparse.Namespace) -> int:
     runs = suite()
     chosen = [r for r in runs if args.only is None or r.name in args.only]
     unknown = sorted(set(args.only or ()) - {r.name for r in runs})
+    try:
+        require_backend(executor_choice(args))
+    except ExecutorError as err:
+        print(f"hil record-suite: {err}", file=sys.stderr)
+        return 2
     if unknown or args.workers < 1:
         print(
             f"hil record-suite: unknown run(s) {unknown!r} or --workers < 1; "
@@ -290,20 +319,33 @@ def run(args: argparse.Namespace) -> int:
     target: Path = args.dir
     target.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix=".record-suite-", dir=target) as staging:
-        try:
-            if args.workers > 1:
-                from concurrent.futures import ProcessPoolExecutor
+        from hil.runs.backends import open_executor
+        from hil.runs.campaign import warm_sim
+        from hil.runs.errors import ExecutorError
+        from hil.runs.fanout import Job, fan_out
 
-                # Spawn: a forked child of a process that ran numba's threads may crash.
-                context = multiprocessing.get_context("spawn")
-                with ProcessPoolExecutor(args.workers, mp_context=context) as pool:
-                    list(pool.map(_record_into, chosen, [staging] * len(chosen)))
-            else:
-                for item in chosen:
-                    print(f"recording {item.name} ...", flush=True)
-                    record_run(item, Path(staging))
-        except Exception as err:
-            print(f"hil record-suite: a run failed: {type(err).__name__}: {err}", file=sys.stderr)
+        job: Job[SuiteRun, dict[str, bytes]] = Job(
+            "record-suite", record_files, _encode_run, _encode_files, _no_decode,
+            partial(warm_sim, ("coarse",)))
+
+        def write(index: int, outcome: object) -> None:
+            if isinstance(outcome, dict):
+                print(f"recorded {chosen[index].name}", flush=True)
+                for relative, data in outcome.items():
+                    path = Path(staging) / chosen[index].name / relative
+                    path.parent.mkdir(parents=True, exist_ok=True)
+                    path.write_bytes(data)
+
+        try:
+            with open_executor(executor_choice(args), job.warm) as executor:
+                out = fan_out(job, chosen, executor, report=write)
+        except ExecutorError as err:
+            print(f"hil record-suite: {err}", file=sys.stderr)
+            return 2
+        if out.failures or out.stopped:
+            why = out.stopped or "; ".join(f"{chosen[f.index].name}: {f.error}"
+                                           for f in out.failures)
+            print(f"hil record-suite: a run failed: {why}", file=sys.stderr)
             return 2
         for item in chosen:
             new, old = Path(staging) / item.name, target / item.name

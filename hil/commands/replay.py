@@ -18,6 +18,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
+from hil.commands.executor_cli import add_executor_arguments, executor_choice
 from hil.commands.replay_progress import ReplayProgress
 
 if TYPE_CHECKING:
@@ -115,6 +116,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "transform and the loop rate for bags holding only the lab's topics (default: the "
         "lab's topics, identity transform, 20 Hz)",
     )
+    add_executor_arguments(parser, 1)
 
 
 _BAG_SUFFIXES = (".mcap", ".db3")
@@ -214,7 +216,7 @@ def _open_jsonl(target: Path) -> TextIO:
 def run(args: argparse.Namespace) -> int:
     """Replay every log, print the reports; return 0, 1 (regression) or 2 (bad log)."""
     from hil.adapters.log import LogConfig
-    from hil.replay.controllers import ScenarioCache
+    from hil.replay.job import REPLAY_JOB, process_caches, task_for
     from hil.replay.lab import load_lab_config
     from hil.replay.options import ReplayOptions, Tolerance
     from hil.replay.regression import (
@@ -227,13 +229,17 @@ def run(args: argparse.Namespace) -> int:
         verdict_jsonl,
         verdict_line,
     )
-    from hil.replay.replayer import replay_log
+    from hil.runs.backends import open_executor, require_backend
+    from hil.runs.errors import ExecutorError
+    from hil.runs.fanout import Failure, fan_out
 
+    choice = executor_choice(args)
     try:
+        require_backend(choice)
         tolerance = Tolerance.parse(args.tolerance)
         log_config = LogConfig(pose_delay_ns=round(args.pose_delay_ms * 1e6))
         lab, lab_loop = load_lab_config(args.config)
-    except ValueError as err:
+    except (ValueError, ExecutorError) as err:
         print(f"hil replay: {_one_line(err)}", file=sys.stderr)
         return 2
     options = ReplayOptions(
@@ -260,7 +266,7 @@ def run(args: argparse.Namespace) -> int:
     def emit(text: str) -> None:
         print(text, file=sys.stderr if to_stderr else sys.stdout, flush=True)
 
-    caches = ScenarioCache()
+    caches = process_caches()  # shared with the replays run in this process
     reports: list[LogReport] = []
     logs, skipped = expand(list(args.logs))
     for path, why in skipped:
@@ -271,16 +277,19 @@ def run(args: argparse.Namespace) -> int:
             f"({', '.join(str(p) for p in args.logs[:3])}{', ...' if len(args.logs) > 3 else ''})",
             file=sys.stderr,
         )
-    with ReplayProgress(len(logs)) as progress:
-        for path in logs:
-            try:
-                report = replay_log(path, options, caches, progress.step(path))
-            except Exception as err:  # the last guard: one line, never a traceback
-                report = LogReport(
-                    str(path), error=f"internal error: {type(err).__name__}: {_one_line(err)}"
-                )
+    tasks = [task_for(path, options, ship=choice.scheduler is not None) for path in logs]
+    done: dict[int, LogReport] = {}
+
+    def ended(index: int, outcome: object) -> None:
+        """Keep a finished log; print every log up to the first still running, in order."""
+        if isinstance(outcome, Failure):  # the last guard: one line, never a traceback
+            outcome = LogReport(str(logs[index]), error=f"internal error: {outcome.error}")
+        assert isinstance(outcome, LogReport)
+        done[index] = outcome
+        progress.done()
+        while len(reports) in done:
+            path, report = logs[len(reports)], done.pop(len(reports))
             reports.append(report)
-            progress.done()
             emit(render(report))
             if args.rerun is not None and not report.error:
                 emit(f"  rerun: {_write_replay_rrd(path, args.rerun, caches, options, report)}")
@@ -289,6 +298,21 @@ def run(args: argparse.Namespace) -> int:
             if jsonl is not None:
                 jsonl.write("".join(line + "\n" for line in jsonl_lines(report)))
                 jsonl.flush()
+
+    try:
+        executor = open_executor(choice, REPLAY_JOB.warm)
+    except ExecutorError as err:
+        print(f"hil replay: {err}", file=sys.stderr)
+        return 2
+    with ReplayProgress(len(logs)) as progress, executor:
+        if executor.dashboard:
+            emit(f"Dask dashboard: {executor.dashboard}")
+        outcome = fan_out(REPLAY_JOB, tasks, executor, report=ended)
+    if outcome.stopped:
+        print(f"hil replay: {outcome.stopped}: {len(reports)} of {len(logs)} logs replayed",
+              file=sys.stderr)
+        if not reports:
+            return 2
     code = exit_code(reports)
     if args.junit is not None:
         try:

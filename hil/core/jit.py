@@ -13,10 +13,11 @@ of older sources are pruned.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import shutil
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any, TypeVar, cast
 
@@ -70,3 +71,45 @@ def njit(fn: F) -> F:
 def njit_parallel(fn: F) -> F:
     """Like :func:`njit` but allows `numba.prange` loops over threads."""
     return cast(F, numba.njit(cache=True, nogil=True, parallel=True)(fn))
+
+
+@contextlib.contextmanager
+def cache_lock() -> Iterator[None]:
+    """Hold this source tree's cache folder exclusively (blocks until free).
+
+    Worker processes that start together warm under it: the first compiles and
+    writes the kernels, the others wait and then load them, instead of all compiling
+    the same kernels at once and racing to write the same cache files. Where file
+    locks are missing (not POSIX) it holds nothing.
+    """
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - Windows
+        yield
+        return
+    with (CACHE_DIR / ".warm.lock").open("a") as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+def warm_once(key: str, warm: Callable[[], None]) -> None:
+    """Run `warm` (code that compiles kernels); the first process to do so holds the lock.
+
+    Double-checked: once a warm of `key` has finished against this cache, later ones
+    only load kernels (no write, no race) and run side by side; until then they queue
+    on :func:`cache_lock`, so one process compiles and the others load its kernels.
+
+    Args:
+        key: Names what `warm` compiles (e.g. the function and its arguments).
+        warm: The warm-up.
+    """
+    marker = CACHE_DIR / f".warmed-{hashlib.sha256(key.encode()).hexdigest()[:16]}"
+    if marker.exists():
+        warm()
+        return
+    with cache_lock():
+        warm()
+        marker.touch()

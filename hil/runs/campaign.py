@@ -2,28 +2,31 @@
 
 Each run is :func:`hil.runs.guarantee.judged_run` on a picklable
 :class:`~hil.runs.sim_run.SimRunSpec` (the run, and its guarantee violations on
-the true state), so any executor that maps a function over specs (processes
-here; a cluster later) can run a campaign. A share of the starts may be moving:
+the true state), so any executor that maps a function over specs (local
+processes or a Dask cluster: :mod:`hil.runs.executor`, :mod:`hil.runs.fanout`) can
+run a campaign, streaming each finished run to a results file. A share of the starts may be moving:
 their initial body velocity is drawn uniformly in the scenario's input box.
 """
 
 from __future__ import annotations
 
-import contextlib
 import math
-import multiprocessing
-import signal
 from collections.abc import Callable, Iterable, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, replace
+from functools import partial
 
 import numpy as np
 from numpy.typing import NDArray
 
 from hil.controllers.symbolic import Controller
+from hil.core.codec import from_jsonable, to_jsonable
+from hil.runs.executor import Executor, LocalExecutor
+from hil.runs.fanout import Failure, Job, Report, fan_out
 from hil.runs.guarantee import GuaranteeViolations, judged_run
+from hil.runs.results import ResultStream
 from hil.runs.sim_run import SimRunSpec
 from hil.runs.summary import RunSummary
+from hil.runtime.settings import LoopConfig
 from hil.scenarios import Scenario
 
 FloatArray = NDArray[np.float64]
@@ -131,6 +134,34 @@ CampaignRun = tuple[RunSummary, GuaranteeViolations]
 """One run of a campaign: its summary and its guarantee violations on the true state."""
 
 
+def warm_sim(scenarios: tuple[str, ...]) -> None:
+    """Warm a worker for simulated runs: one short judged run per scenario.
+
+    It loads (or compiles, once, under the cache lock) every numba kernel a run
+    uses and reads the scenario's abstraction tables, so the worker's first real run
+    costs what the others do.
+    """
+    for scenario in scenarios:
+        judged_run(SimRunSpec(scenario=scenario, loop=LoopConfig(
+            resynthesis_period_s=None, max_duration_s=2.0)))
+
+
+def _decode_run(data: object) -> CampaignRun:
+    summary, violations = from_jsonable(CampaignRun, data)
+    return summary, violations
+
+
+def sim_job(name: str, scenarios: Iterable[str]) -> Job[SimRunSpec, CampaignRun]:
+    """Return the job of a campaign or sweep: judged simulated runs of `scenarios`.
+
+    Args:
+        name: "campaign" or "sweep" (names the results file's plan).
+        scenarios: The scenarios its runs use (each worker warms on them).
+    """
+    return Job(name, judged_run, to_jsonable, to_jsonable, _decode_run,
+               partial(warm_sim, tuple(sorted(set(scenarios)))))
+
+
 @dataclass(frozen=True, slots=True)
 class CampaignResult:
     """The finished runs of a campaign, complete or stopped.
@@ -139,61 +170,61 @@ class CampaignResult:
         runs: Each finished run, in spec order.
         specs: The spec of each finished run, same order.
         planned: How many runs were asked for.
+        failures: The runs that raised, each with its spec (JSON-ready) and why.
+        reason: Why the campaign stopped early ("" when every run was tried).
+        resumed: Runs read back from the results file.
+        retried: Runs started again because their worker died.
     """
 
     runs: list[CampaignRun]
     specs: list[SimRunSpec]
     planned: int
+    failures: tuple[Failure, ...] = ()
+    reason: str = ""
+    resumed: int = 0
+    retried: int = 0
 
     @property
     def stopped(self) -> bool:
-        """Whether the campaign was stopped before every run finished."""
-        return len(self.runs) < self.planned
+        """Whether the campaign was stopped before every run was tried."""
+        return bool(self.reason)
 
 
-def _ignore_sigint() -> None:
-    """Worker initializer: Ctrl-C is the parent's to handle (it lets running runs finish)."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-
-def run_campaign(specs: list[SimRunSpec], workers: int,
-                 progress: Callable[[CampaignRun], None] | None = None) -> CampaignResult:
-    """Run and judge every spec, `workers` processes at a time.
+def run_campaign(specs: list[SimRunSpec], executor: Executor | int,
+                 progress: Callable[[CampaignRun], None] | None = None, *,
+                 stream: ResultStream | None = None,
+                 job: Job[SimRunSpec, CampaignRun] | None = None,
+                 report: Report | None = None) -> CampaignResult:
+    """Run and judge every spec on `executor` (or on that many local processes).
 
     Ctrl-C (KeyboardInterrupt) stops the campaign without losing what it did: no new run
     starts, the runs already going finish, and the result holds every finished run (a
-    second Ctrl-C while they finish gives up on them).
+    second Ctrl-C while they finish gives up on them). See :func:`hil.runs.fanout.fan_out`.
+
+    Args:
+        specs: The runs.
+        executor: Where to run them; an int opens that many local processes.
+        progress: Called with each finished run, in this process.
+        stream: The results file (opened); its runs are read back, not run again.
+        job: The job (default: :func:`sim_job` of the specs' scenarios).
+        report: Called with every run that ends, finished or failed (a progress bar).
     """
-    results: list[CampaignRun | None] = [None] * len(specs)
-    if workers <= 1:
-        with contextlib.suppress(KeyboardInterrupt):
-            for i, spec in enumerate(specs):
-                results[i] = judged_run(spec)
-                if progress is not None:
-                    progress(results[i])  # type: ignore[arg-type]
+    job = job or sim_job("campaign", (s.scenario for s in specs))
+
+    def ended(index: int, outcome: object) -> None:
+        if report is not None:
+            report(index, outcome)
+        if progress is not None and not isinstance(outcome, Failure):
+            progress(outcome)  # type: ignore[arg-type]
+
+    if isinstance(executor, int):
+        with LocalExecutor(executor, job.warm) as local:
+            out = fan_out(job, specs, local, stream, ended)
     else:
-        # Spawn, not fork: the parent has run numba's threaded kernels, and a forked
-        # child of a threaded process may crash in the threading layer.
-        context = multiprocessing.get_context("spawn")
-        pool = ProcessPoolExecutor(max_workers=workers, mp_context=context,
-                                   initializer=_ignore_sigint)
-        futures = {pool.submit(judged_run, spec): i for i, spec in enumerate(specs)}
-        try:
-            for future in as_completed(futures):
-                result = future.result()
-                results[futures[future]] = result
-                if progress is not None:
-                    progress(result)
-        except KeyboardInterrupt:
-            pass  # no new run starts; the shutdown below lets the running ones finish
-        finally:
-            pool.shutdown(wait=True, cancel_futures=True)
-        for future, i in futures.items():
-            if results[i] is None and future.done() and not future.cancelled() \
-                    and future.exception() is None:
-                results[i] = future.result()
-    finished = [(spec, r) for spec, r in zip(specs, results, strict=True) if r is not None]
-    return CampaignResult([r for _, r in finished], [spec for spec, _ in finished], len(specs))
+        out = fan_out(job, specs, executor, stream, ended)
+    finished = [(spec, r) for spec, r in zip(specs, out.results, strict=True) if r is not None]
+    return CampaignResult([r for _, r in finished], [spec for spec, _ in finished], len(specs),
+                          tuple(out.failures), out.stopped, out.resumed, out.retried)
 
 
 @dataclass(frozen=True, slots=True)

@@ -25,8 +25,11 @@ from numpy.typing import NDArray
 from hil.adapters.sim import ObstacleMotion, SimConfig, SimWorld, ThrusterOutage
 from hil.bag.recorder import Recorder
 from hil.bag.run_info import RunInfo
+from hil.controllers.pid import PidGains
 from hil.controllers.symbolic import Controller, SymbolicProblem, Synthesizer
+from hil.core.codec import from_jsonable, to_jsonable
 from hil.core.samples import ObstacleLayout
+from hil.model.environment import EnvironmentalLoad
 from hil.runs.summary import RunSummary, summarize_run
 from hil.runtime.assembly import (
     EkfObserver,
@@ -67,6 +70,10 @@ class SimRunSpec:
         thruster_outages: Injected thruster-link failures.
         motions: Scheduled obstacle motions.
         cache_dir: Abstraction-table cache (None: the default cache).
+        gains: Velocity-PID gains of the low level; None: the shipped ones (those the
+            scenario's deviation budget was measured with).
+        load: Environmental load b(t) on the simulated vessel (its Gauss-Markov noise
+            seeded by the load's own seed); None: calm water, as in the tank.
     """
 
     scenario: str = "paper"
@@ -79,6 +86,8 @@ class SimRunSpec:
     thruster_outages: tuple[ThrusterOutage, ...] = ()
     motions: tuple[ObstacleMotion, ...] = ()
     cache_dir: Path | None = None
+    gains: PidGains | None = None
+    load: EnvironmentalLoad | None = None
 
 
 def default_start(scenario: Scenario) -> tuple[float, float, float]:
@@ -132,6 +141,7 @@ def build_runtime(
     synthesizer: Synthesizer, mode: ResynthesisMode, *,
     select: Select = select_index, start_nu: FloatArray | None = None,
     solver: Callable[[ObstacleLayout], SymbolicController] | None = None,
+    gains: PidGains | None = None,
 ) -> Runtime:
     """Compose the full stack for `scenario` against `world`.
 
@@ -145,10 +155,11 @@ def build_runtime(
         select: Choice among the safe inputs; the paper's cost J by default.
         start_nu: Body velocity (3,) the EKF starts from; None at rest.
         solver: Layout -> controller; a :class:`LayoutSolver` if None.
+        gains: Velocity-PID gains; None: the shipped ones.
     """
     solve = solver if solver is not None else LayoutSolver(scenario, synthesizer)
     resynthesizer: Resynthesizer[SymbolicController] = Resynthesizer(solve, mode)
-    return Runtime(world, EkfObserver(start_nu=start_nu), low_level_for(loop.loop_hz),
+    return Runtime(world, EkfObserver(start_nu=start_nu), low_level_for(loop.loop_hz, gains),
                    resynthesizer, select, log, loop, scenario_hash(scenario),
                    estimation_position_m=scenario.transient.estimation_position_m,
                    obstacle_max_age_s=(scenario.tracking.max_report_age_s
@@ -233,6 +244,7 @@ def simulate(
         motions=spec.motions,
         pose=PoseSensorConfig(scheduled_dropouts_s=spec.pose_outages_s),
         thruster_outages=spec.thruster_outages,
+        load=spec.load if spec.load is not None else EnvironmentalLoad(),
     ), max_duration_s=spec.loop.max_duration_s + 10.0)
     world = World(sim.clock, sim.pose, sim.imu, sim.obstacles, sim.thrusters)
     synthesizer = synthesizer_for(scenario, spec.cache_dir, spec.loop.synthesis_threads)
@@ -253,7 +265,7 @@ def simulate(
     try:
         runtime = build_runtime(
             scenario, world, log, spec.loop, synthesizer, ResynthesisMode.INLINE,
-            select=select, solver=solver,
+            select=select, solver=solver, gains=spec.gains,
             start_nu=None if spec.start_velocity is None else np.array(spec.start_velocity))
         signals = stop_on_signals(runtime.request_stop) if handle_signals else nullcontext()
         with signals:
@@ -282,8 +294,8 @@ def summarize(spec: SimRunSpec, scenario: Scenario, sim: SimWorld, stats: RunSta
 def spec_to_json(spec: SimRunSpec) -> dict[str, Any]:
     """Return the parts of a run specification a suite manifest keeps.
 
-    A start at rest writes no ``start_velocity``, so specs recorded before it existed
-    read back unchanged.
+    A start at rest writes no ``start_velocity`` (nor shipped gains ``gains``, nor calm
+    water ``load``), so specs recorded before they existed read back unchanged.
     """
     moving = {} if spec.start_velocity is None else {"start_velocity": list(spec.start_velocity)}
     return {
@@ -303,6 +315,8 @@ def spec_to_json(spec: SimRunSpec) -> dict[str, Any]:
             for m in spec.motions
         ],
         "max_duration_s": spec.loop.max_duration_s,
+        **({} if spec.gains is None else {"gains": to_jsonable(spec.gains)}),
+        **({} if spec.load is None else {"load": to_jsonable(spec.load)}),
     }
 
 
@@ -334,6 +348,9 @@ def spec_from_json(data: dict[str, Any]) -> SimRunSpec:
                 )
                 for m in data.get("motions", [])
             ),
+            gains=None if data.get("gains") is None else from_jsonable(PidGains, data["gains"]),
+            load=None if data.get("load") is None
+            else from_jsonable(EnvironmentalLoad, data["load"]),
         )
     except (KeyError, TypeError, IndexError) as err:
         raise ValueError(f"malformed run specification {data!r}: {err!r}") from err

@@ -7,13 +7,14 @@ controller with its re-synthesis each get a thin adapter here, so the loop in
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
 from hil.controllers.low_level import LowLevelController, LowLevelParams
 from hil.controllers.observer import Ekf, ObserverStatus
+from hil.controllers.pid import PidGains
 from hil.controllers.symbolic import (
     Controller,
     DecisionContract,
@@ -105,9 +106,11 @@ class PidAllocator:
         self.controller.reset()
 
 
-def low_level_for(loop_hz: float) -> PidAllocator:
-    """Return the vessel's low level (default gains and allocator) for a loop at `loop_hz`."""
-    return PidAllocator(LowLevelController(LowLevelParams(dt_s=1.0 / loop_hz)))
+def low_level_for(loop_hz: float, gains: PidGains | None = None) -> PidAllocator:
+    """Return the vessel's low level for a loop at `loop_hz` (default gains if None)."""
+    params = LowLevelParams(dt_s=1.0 / loop_hz)
+    return PidAllocator(LowLevelController(
+        params if gains is None else replace(params, gains=gains)))
 
 
 class SymbolicAdapter:
