@@ -16,11 +16,10 @@ from pathlib import Path
 
 from hil.commands.common import positive_seconds
 from hil.commands.executor_cli import (
-    RunProgress,
     add_executor_arguments,
     add_results_arguments,
     executor_choice,
-    open_stream,
+    run_specs,
 )
 
 HELP = "run many simulated dockings from random starts in parallel and compare with the paper"
@@ -54,17 +53,15 @@ def run(args: argparse.Namespace) -> int:
 
     from hil.commands.campaign_report import report
     from hil.controllers.symbolic import SymbolicError
-    from hil.runs.backends import open_executor, require_backend
+    from hil.runs.backends import require_backend
     from hil.runs.campaign import (
         StartRegion,
         campaign_specs,
         draw_starts,
         draw_velocities,
-        run_campaign,
         sim_job,
     )
-    from hil.runs.errors import ExecutorError, ResultsError
-    from hil.runs.results import Plan
+    from hil.runs.errors import ExecutorError
     from hil.runs.sim_run import SimRunSpec, synthesizer_for
     from hil.runtime.assembly import LayoutSolver, layout_from_scenario
     from hil.runtime.settings import LoopConfig
@@ -95,25 +92,13 @@ def run(args: argparse.Namespace) -> int:
         resynthesis_period_s=None, max_duration_s=args.max_duration))
     specs = campaign_specs(base, starts, seed0=args.seed, velocities=velocities)
     job = sim_job("campaign", [args.scenario])
-    try:
-        stream = open_stream(args, Plan.of("campaign", [job.encode_spec(s) for s in specs]),
-                             f"campaign-{Path(args.scenario).stem}")
-    except ResultsError as err:
-        print(f"hil campaign: {err}", file=sys.stderr)
-        return 2
-    with stream:
-        try:
-            executor = open_executor(executor_choice(args), job.warm)
-        except ExecutorError as err:
-            print(f"hil campaign: {err}", file=sys.stderr)
-            return 2
-        label = f"{scenario.name}: docking runs ({executor.description})"
-        with executor, RunProgress(console, label, len(specs), len(stream.finished),
-                                   executor.dashboard) as progress:
-            outcome = run_campaign(specs, executor, stream=stream, job=job,
-                                   report=progress.advance)
+    ran = run_specs(args, "campaign", f"campaign-{Path(args.scenario).stem}", specs, job,
+                    console, f"{scenario.name}: docking runs")
+    if isinstance(ran, int):
+        return ran
+    outcome, results = ran
     return report(outcome, command="campaign", console=console, as_json=args.json,
                   title=f"campaign: {scenario.name} ({discarded} non-winning starts redrawn)",
                   extra={"scenario": args.scenario, "discarded_starts": discarded,
                          "moving": args.moving},
-                  results=stream.path)
+                  results=results)

@@ -23,8 +23,10 @@ if TYPE_CHECKING:
     from rich.text import Text
 
     from hil.runs.backends import ExecutorChoice
-    from hil.runs.fanout import Failure
+    from hil.runs.campaign import CampaignResult, CampaignRun
+    from hil.runs.fanout import Failure, Job
     from hil.runs.results import Plan, ResultStream
+    from hil.runs.sim_run import SimRunSpec
 
 
 def add_executor_arguments(parser: argparse.ArgumentParser, default_workers: int | None) -> None:
@@ -158,3 +160,41 @@ def failure_lines(command: str, failures: list[Failure], results: Path | None) -
         lines.append(f"hil {command}: {len(failures)} run(s) failed; re-run only them with the "
                      f"same arguments and --resume {results}")
     return lines
+
+
+def run_specs(args: argparse.Namespace, command: str, stem: str, specs: list[SimRunSpec],
+              job: Job[SimRunSpec, CampaignRun], console: Console,
+              label: str) -> tuple[CampaignResult, Path] | int:
+    """Run simulated docking specs on the executor `args` chose, streamed to a results file.
+
+    What ``hil campaign`` and ``hil sweep`` share: the results file (``--results``,
+    ``--resume``; named from `stem` by default), the executor, the progress bar (titled
+    `label` and the executor) and the fan-out.
+
+    Returns:
+        The campaign's result and its results file, or 2 after printing why the results
+        file or the executor could not be opened.
+    """
+    import sys
+
+    from hil.runs.backends import open_executor
+    from hil.runs.campaign import run_campaign
+    from hil.runs.errors import ExecutorError, ResultsError
+    from hil.runs.results import Plan
+
+    try:
+        stream = open_stream(args, Plan.of(command, [job.encode_spec(s) for s in specs]), stem)
+    except ResultsError as err:
+        print(f"hil {command}: {err}", file=sys.stderr)
+        return 2
+    with stream:
+        try:
+            executor = open_executor(executor_choice(args), job.warm)
+        except ExecutorError as err:
+            print(f"hil {command}: {err}", file=sys.stderr)
+            return 2
+        with executor, RunProgress(console, f"{label} ({executor.description})", len(specs),
+                                   len(stream.finished), executor.dashboard) as progress:
+            result = run_campaign(specs, executor, stream=stream, job=job,
+                                  report=progress.advance)
+    return result, stream.path

@@ -16,11 +16,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from hil.commands.executor_cli import (
-    RunProgress,
     add_executor_arguments,
     add_results_arguments,
     executor_choice,
-    open_stream,
+    run_specs,
 )
 
 if TYPE_CHECKING:
@@ -75,10 +74,9 @@ def run(args: argparse.Namespace) -> int:
     from rich.console import Console
 
     from hil.commands.campaign_report import report
-    from hil.runs.backends import open_executor, require_backend
-    from hil.runs.campaign import run_campaign, sim_job
-    from hil.runs.errors import ExecutorError, ResultsError
-    from hil.runs.results import Plan
+    from hil.runs.backends import require_backend
+    from hil.runs.campaign import sim_job
+    from hil.runs.errors import ExecutorError
     from hil.runs.sweep import SweepError, load_sweep
 
     if args.workers < 1:
@@ -99,26 +97,15 @@ def run(args: argparse.Namespace) -> int:
             print(json.dumps(spec, sort_keys=True))
         return 0
     console = Console(stderr=args.json)
-    try:
-        stream = open_stream(args, Plan.of("sweep", encoded), f"sweep-{args.file.stem}")
-    except ResultsError as err:
-        print(f"hil sweep: {err}", file=sys.stderr)
-        return 2
-    with stream:
-        try:
-            executor = open_executor(executor_choice(args), job.warm)
-        except ExecutorError as err:
-            print(f"hil sweep: {err}", file=sys.stderr)
-            return 2
-        label = f"{args.file.name}: {sweep.mode} of {len(specs)} runs ({executor.description})"
-        with executor, RunProgress(console, label, len(specs), len(stream.finished),
-                                   executor.dashboard) as progress:
-            outcome = run_campaign(specs, executor, stream=stream, job=job,
-                                   report=progress.advance)
+    ran = run_specs(args, "sweep", f"sweep-{args.file.stem}", specs, job, console,
+                    f"{args.file.name}: {sweep.mode} of {len(specs)} runs")
+    if isinstance(ran, int):
+        return ran
+    outcome, results = ran
     status = report(outcome, command="sweep", console=console, as_json=args.json,
                     title=f"sweep {args.file.name} ({sweep.mode})",
                     extra={"sweep": str(args.file), "mode": sweep.mode},
-                    results=stream.path)
+                    results=results)
     if outcome.runs:
         _by_axis(console, points, outcome)
     return status
