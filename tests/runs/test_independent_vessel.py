@@ -17,7 +17,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -37,6 +36,7 @@ from hil.runs.campaign import StartRegion, draw_starts, draw_velocities
 from hil.runtime.assembly import layout_from_scenario
 from hil.scenarios import load_scenario
 from hil.sim.plant import N_PLANT, N_TRACE, P_ALPHA, P_ETA, P_NU, P_U, plant_advance
+from tests.runs.dds_processes import dds_env, stop
 
 pytest.importorskip("rclpy")
 pytestmark = pytest.mark.ros
@@ -78,24 +78,6 @@ def controllers() -> ControllerCache:
     return ControllerCache(load_scenario("coarse"))
 
 
-def _env(domain_id: int) -> dict[str, str]:
-    env = dict(os.environ)
-    env["ROS_DOMAIN_ID"] = str(domain_id)
-    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    return env
-
-
-def _stop(proc: subprocess.Popen[bytes]) -> int:
-    if proc.poll() is None:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(timeout=15)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-    return int(proc.returncode)
-
-
 def _run(tmp_path: Path, start: Start, domain: int, controllers: ControllerCache) -> Outcome:
     """Run the independent vessel and `hil vessel` over DDS; judge on the vessel's truth."""
     config = tmp_path / "vessel.toml"
@@ -123,18 +105,18 @@ resynthesis_period_s = 20.0
          f"--start-velocity={u},{v},{math.degrees(r)}", "--clock", "--speed", "2",
          "--lockstep-s", "0.1", "--domain-id", str(domain), "--duration", "400",
          "--seed", str(domain), "--out", str(truth_csv)],
-        env=_env(domain), stdout=subprocess.DEVNULL, stderr=err_file)
+        env=dds_env(domain), stdout=subprocess.DEVNULL, stderr=err_file)
     stack = None
     try:
         stack = subprocess.Popen(
             [*HIL, "vessel", "--config", str(config), "--out", str(out), "--json"],
-            env=_env(domain), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            env=dds_env(domain), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         stdout, stderr = stack.communicate(timeout=360)
     finally:
         if stack is not None and stack.poll() is None:
             stack.kill()
             stack.wait()
-        vessel_rc = _stop(vessel)
+        vessel_rc = stop(vessel)
         err_file.close()
     vessel_err = vessel_log.read_text()
     assert vessel_rc == 0, vessel_err[-2000:]

@@ -21,6 +21,7 @@ import pytest
 from hil.bag.reader import BagReader
 from hil.core.records import Event
 from hil.core.samples import ThrusterCommand
+from tests.runs.dds_processes import dds_env, stop
 
 NS_PER_S = 1_000_000_000
 
@@ -28,23 +29,6 @@ pytest.importorskip("rclpy")
 pytestmark = pytest.mark.ros
 
 HIL = [sys.executable, "-m", "hil"]
-
-
-def _env(domain_id: int) -> dict[str, str]:
-    env = dict(os.environ)
-    env["ROS_DOMAIN_ID"] = str(domain_id)
-    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-    return env
-
-
-def _stop(proc: subprocess.Popen[bytes]) -> None:
-    if proc.poll() is None:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
 
 
 def test_stack_docks_the_simulated_vessel_over_dds(tmp_path: Path) -> None:
@@ -76,7 +60,7 @@ resynthesis_period_s = 20.0
             "--duration",
             "400",
         ],
-        env=_env(domain),
+        env=dds_env(domain),
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
     )
@@ -84,7 +68,7 @@ resynthesis_period_s = 20.0
     try:
         stack = subprocess.Popen(
             [*HIL, "vessel", "--config", str(config), "--out", str(out), "--json"],
-            env=_env(domain),
+            env=dds_env(domain),
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
             text=True,
@@ -94,7 +78,7 @@ resynthesis_period_s = 20.0
         if stack is not None and stack.poll() is None:
             stack.kill()
             stack.wait()
-        _stop(vessel)
+        stop(vessel)
     assert stack.returncode == 0, stderr[-3000:] + stdout[-3000:]
     summary = json.loads(stdout.strip().splitlines()[-1])
     assert summary["docked"] is True
@@ -126,13 +110,13 @@ domain_id = {domain}
     out = tmp_path / "run"
     vessel = subprocess.Popen(
         [*HIL, "sim-vessel", "coarse", "--domain-id", str(domain)],
-        env=_env(domain),
+        env=dds_env(domain),
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
     )
     stack = subprocess.Popen(
         [*HIL, "vessel", "--config", str(config), "--out", str(out)],
-        env=_env(domain),
+        env=dds_env(domain),
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -149,7 +133,7 @@ domain_id = {domain}
         if stack.poll() is None:
             stack.kill()
             stack.wait()
-        _stop(vessel)
+        stop(vessel)
     assert stack.returncode in (0, 1), stderr[-3000:]
     assert "stopped: stopped by SIGTERM" in stderr
     with BagReader(out) as reader:
