@@ -29,7 +29,8 @@ class EventCode(enum.Enum):
     was older than the scenario's ``max_report_age_s`` (only with obstacles that move;
     ERROR; the text gives the age): the synthesis covered their motion only that long,
     so no decision is taken, the velocity reference goes to zero and the next decision
-    after a fresher report's controller is a first decision."""
+    after a fresher report (of the same shapes: the controller's stamp renewed; moved: its
+    controller synthesized) is a first decision."""
     OBSTACLES_BACK = "obstacles_back"
     """A controller from a fresh enough obstacle report is in force again: decisions resume."""
     SAMPLE_REJECTED = "sample_rejected"

@@ -105,9 +105,10 @@ class Runtime:
             (:mod:`hil.runtime.monitor`).
         obstacle_max_age_s: With obstacles that move, the oldest their report may be
             when a decision is taken (s; the scenario's ``max_report_age_s``, which the
-            synthesis budgeted their motion for): every fresher report is re-synthesized
-            and an older one stops the vessel (``obstacles_stale``). None: obstacles
-            are fixed between layouts.
+            synthesis budgeted their motion for): a fresher report of moved obstacles is
+            re-synthesized, one of the same shapes renews the report time the controller
+            relies on (no synthesis), and an older one stops the vessel
+            (``obstacles_stale``). None: obstacles are fixed between layouts.
     """
 
     def __init__(
@@ -299,13 +300,24 @@ class Runtime:
         submitted = self._submitted_layout
         changed = submitted is None or layout.obstacles != submitted.obstacles
         # With obstacles that move, a controller is good for a bounded age of its report:
-        # a fresher report renews it, even of the same layout (the solver's memo makes
-        # that cheap when nothing moved).
-        changed = changed or (
-            self.obstacle_max_age_s is not None
+        # a fresher report of the same shapes renews that report's stamp (the one the
+        # staleness check measures from) without a synthesis, the controller being the same.
+        renewed = (
+            not changed
+            and self.obstacle_max_age_s is not None
             and submitted is not None
             and layout.t_ns > submitted.t_ns
         )
+        if changed or renewed:
+            # Every report taken in is recorded, a renewal too: a replay re-runs the stack
+            # on this stream and must see the report time each decision relied on. A
+            # layout known before the run (the scenario's, stamped 0) is recorded when the
+            # run first sees it, so that every topic of the log shares the run's clock.
+            self.log.obstacles(
+                layout if layout.t_ns >= self._start_ns else replace(layout, t_ns=t_ns)
+            )
+        if renewed:
+            self._renew(layout)
         period = self.config.resynthesis_period_s
         timer_due = (
             period is not None
@@ -323,15 +335,21 @@ class Runtime:
             )
             self._last_submit_ns = t_ns
             return
-        if changed:
-            # A layout known before the run (the scenario's, stamped 0) is recorded when
-            # the run first sees it, so that every topic of the log shares the run's clock.
-            self.log.obstacles(
-                layout if layout.t_ns >= self._start_ns else replace(layout, t_ns=t_ns)
-            )
         self._submitted_layout = layout
         self._last_submit_ns = t_ns
         self.resynthesizer.submit(layout)
+
+    def _renew(self, layout: ObstacleLayout) -> None:
+        """Take a fresher report of the submitted shapes as the newest, without synthesis.
+
+        The controller in force, when synthesized for the same shapes, now relies on this
+        report: its age is measured from `layout`'s stamp. A synthesis of these shapes
+        still running finishes with the renewed stamp (:meth:`_swap_controller`).
+        """
+        self._submitted_layout = layout
+        current = self._controller_layout
+        if current is not None and current.obstacles == layout.obstacles:
+            self._controller_layout = layout
 
     def _swap_controller(self, t_ns: int) -> None:
         result = self.resynthesizer.poll()
@@ -340,7 +358,15 @@ class Runtime:
         if result.controller is not None:
             self.controller = result.controller
             self.controller_version = result.version
-            self._controller_layout = result.layout
+            # A fresher report of the same shapes may have come in while it was solved:
+            # the controller relies on the newest (renewed) one.
+            submitted = self._submitted_layout
+            renewed = (
+                submitted is not None
+                and submitted.obstacles == result.layout.obstacles
+                and submitted.t_ns > result.layout.t_ns
+            )
+            self._controller_layout = submitted if renewed else result.layout
             self.stats.resyntheses += 1
             self.stats.synthesis_seconds.append(result.seconds)
             if self.mode is Mode.WAITING:
@@ -405,7 +431,8 @@ class Runtime:
         ``obstacle_max_age_s`` + tau + late after their report; a decision later than
         ``obstacle_max_age_s`` after it is not covered. Then the velocity reference goes to
         zero (``obstacles_stale``, once per episode) and the next decision, once a
-        fresher report's controller is in, is a first decision.
+        fresher report is in (renewing the controller's stamp, or its shapes' controller
+        synthesized), is a first decision.
         """
         max_age = self.obstacle_max_age_s
         layout = self._controller_layout

@@ -1,16 +1,20 @@
 """A decision relies on a tracked obstacle's report only while it is young enough.
 
 With obstacles that move (a speed bound above zero) the synthesis covers their motion
-for ``max_report_age_s`` + tau + late after the report, so the loop re-synthesizes every
-fresher report and takes no decision on an older one: the reference goes to zero
-(``obstacles_stale``) until a fresh report's controller is in (``obstacles_back``), and
-the decision then is a first one. Fixed obstacles never age. The controller is the
-packaged coarse scenario's, held fixed, so only the loop's bookkeeping is under test.
+for ``max_report_age_s`` + tau + late after the report, so the loop re-synthesizes a
+fresher report of moved obstacles, renews the report time of the controller in force on
+a fresher report of the same shapes (no synthesis, no new controller version), and takes
+no decision on a report older than that: the reference goes to zero (``obstacles_stale``)
+until a fresh report is in (``obstacles_back``), and the decision then is a first one.
+Every report taken in is recorded, so a replay sees the report each decision relied on.
+Fixed obstacles never age. The controller is the packaged coarse scenario's, held fixed,
+so only the loop's bookkeeping is under test.
 """
 
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -22,8 +26,9 @@ from hil.core.samples import ObstacleLayout
 from hil.runs.sim_run import build_runtime, default_start, synthesizer_for
 from hil.runtime.assembly import LayoutSolver, SymbolicAdapter, layout_from_scenario
 from hil.runtime.loop import Runtime, World
-from hil.runtime.resynthesis import ResynthesisMode
+from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer
 from hil.runtime.settings import NS_PER_S, LoopConfig
+from hil.runtime.stack import SymbolicController
 from hil.runtime.trace import MemoryLog
 from hil.scenarios import Scenario, load_scenario
 
@@ -53,16 +58,24 @@ def setup(tmp_path_factory: pytest.TempPathFactory) -> tuple[Scenario, SymbolicA
     return scenario, adapter, folder
 
 
+STILL = ObstacleMotion(0, (0.0, 0.0), 0.0, 0.0)
+"""O2 still, re-reported every second as a tracker does."""
+MOVED = ObstacleMotion(0, (0.0, -0.05), 2.0, 4.0)
+"""O2 moving down 5 cm a second over [2, 4] s: its 3-s and 4-s reports are moved shapes."""
+REPORTS_S = [0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 10.0, 11.0, 12.0, 13.0, 14.0]
+"""The reports the loop takes in: one a second but for the silent span."""
+
+
 def _run(setup: tuple[Scenario, SymbolicAdapter, Path], speed_mps: float,
+         motion: ObstacleMotion = STILL, resynthesis_period_s: float | None = 2.0,
          ) -> tuple[Runtime, MemoryLog, list[ObstacleLayout]]:
     coarse, adapter, folder = setup
     scenario = dataclasses.replace(
         coarse, obstacles=tuple(dataclasses.replace(o, max_speed_mps=speed_mps)
                                 for o in coarse.obstacles))
-    # A still obstacle, re-reported every second as a tracker does.
     sim = SimWorld(SimConfig(start=default_start(scenario), seed=1,
                              obstacles=layout_from_scenario(scenario).obstacles,
-                             motions=(ObstacleMotion(0, (0.0, 0.0), 0.0, 0.0),)),
+                             motions=(motion,)),
                    max_duration_s=24.0)
     world = World(sim.clock, sim.pose, sim.imu, _SilentTracker(sim), sim.thrusters)
     log = MemoryLog()
@@ -73,26 +86,20 @@ def _run(setup: tuple[Scenario, SymbolicAdapter, Path], speed_mps: float,
         return adapter
 
     runtime = build_runtime(
-        scenario, world, log, LoopConfig(max_duration_s=14.0),
+        scenario, world, log,
+        LoopConfig(max_duration_s=14.0, resynthesis_period_s=resynthesis_period_s),
         synthesizer_for(scenario, folder / "tables"), ResynthesisMode.INLINE, solver=solve,
     )
     runtime.run()
     return runtime, log, solved
 
 
-def test_a_report_older_than_the_max_age_stops_decisions_until_a_fresh_one(
-    setup: tuple[Scenario, SymbolicAdapter, Path],
-) -> None:
-    runtime, log, solved = _run(setup, 0.05)
-    assert runtime.obstacle_max_age_s == 1.0  # the coarse scenario's max_report_age_s
-    # Every fresher report was synthesized (a still obstacle too): one per second but
-    # for the silent span.
-    stamps_s = sorted({layout.t_ns / NS_PER_S for layout in solved})
-    assert stamps_s == [0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 10.0, 11.0, 12.0, 13.0, 14.0]
+def _assert_stale_over_the_silent_span(runtime: Runtime, log: MemoryLog) -> None:
+    """The decisions of a run whose tracker is silent over `SILENT_S`, as before renewals."""
     events = [(level, code) for _, level, code, _ in log.events if code.startswith("obstacles_")]
     at_s = [t / NS_PER_S for t, _, code, _ in log.events if code.startswith("obstacles_")]
     # The decision due at 7.05 s would rely on the 5-s report, 2.05 s old: stopped; the
-    # 10-s report's controller lets it be taken at once.
+    # 10-s report lets it be taken at once.
     assert events == [(EventLevel.ERROR, "obstacles_stale"), (EventLevel.INFO, "obstacles_back")]
     assert at_s == pytest.approx([7.05, 10.0])
     assert runtime.stats.obstacle_stale_stops == 1
@@ -100,14 +107,153 @@ def test_a_report_older_than_the_max_age_stops_decisions_until_a_fresh_one(
     assert times_s[:4] == pytest.approx([1.05, 3.05, 5.05, 10.0])
     assert log.decisions[3].first
     assert not log.decisions[2].first
+    # Every report taken in is recorded, renewals too: the replay's stack re-run reads the
+    # report each decision relied on from this stream.
+    assert [layout.t_ns / NS_PER_S for layout in log.layouts] == REPORTS_S
     for d in log.decisions:  # no decision relied on a report older than 1 s
-        newest = max(t for t in (layout.t_ns for layout in solved) if t <= d.t_ns)
+        newest = max(t for t in (layout.t_ns for layout in log.layouts) if t <= d.t_ns)
         assert d.t_ns - newest <= NS_PER_S
     # Stopped meanwhile: the velocity reference is zero from the stale decision on.
     held = [ref for t, ref in log.velocity_references if 7.05 * NS_PER_S <= t < 10 * NS_PER_S]
     assert held
     assert np.all(np.array(held) == 0.0)
     assert np.any(np.array(log.velocity_references[-1][1]) != 0.0)  # going again
+
+
+def test_a_report_older_than_the_max_age_stops_decisions_until_a_fresh_one(
+    setup: tuple[Scenario, SymbolicAdapter, Path],
+) -> None:
+    runtime, log, solved = _run(setup, 0.05)
+    assert runtime.obstacle_max_age_s == 1.0  # the coarse scenario's max_report_age_s
+    # A fresher report of the still obstacle renews the stamp, it is not synthesized: the
+    # syntheses are the 2-s timer's (0, 2, ..., 14 s) as with fixed obstacles, each of the
+    # newest report then (the 5-s one at 6 and 8 s, the tracker silent).
+    assert [layout.t_ns / NS_PER_S for layout in solved] == [
+        0.0, 2.0, 4.0, 5.0, 5.0, 10.0, 12.0, 14.0]
+    _assert_stale_over_the_silent_span(runtime, log)
+    # The controller relies on the last report, renewed at 13 s and synthesized at 14 s.
+    assert runtime._controller_layout is not None
+    assert runtime._controller_layout.t_ns == 14 * NS_PER_S
+
+
+def test_a_fresher_report_of_the_same_shapes_renews_the_stamp_without_synthesis(
+    setup: tuple[Scenario, SymbolicAdapter, Path],
+) -> None:
+    # No timer: only a change of the shapes is synthesized.
+    runtime, log, solved = _run(setup, 0.05, resynthesis_period_s=None)
+    assert [layout.t_ns for layout in solved] == [0]
+    assert runtime.stats.resyntheses == 1
+    assert runtime.controller_version == 1
+    assert {d.controller_version for d in log.decisions} == {1}
+    assert log.event_codes().count("controller_ready") == 1
+    # The one controller's report time followed the reports: the 10-s report, of the same
+    # shapes, was enough to decide again, and the last one (14 s) is the one relied on.
+    _assert_stale_over_the_silent_span(runtime, log)
+    assert runtime._controller_layout is not None
+    assert runtime._controller_layout.t_ns == 14 * NS_PER_S
+    assert runtime._controller_layout.obstacles == solved[0].obstacles
+
+
+def test_a_moved_obstacle_is_still_synthesized(
+    setup: tuple[Scenario, SymbolicAdapter, Path],
+) -> None:
+    runtime, log, solved = _run(setup, 0.05, MOVED, resynthesis_period_s=None)
+    # The 3-s and 4-s reports moved O2 (by 5 cm each): a synthesis each, a new version.
+    assert [layout.t_ns / NS_PER_S for layout in solved] == [0.0, 3.0, 4.0]
+    assert [layout.obstacles[0].y_min_m for layout in solved] == pytest.approx(
+        [solved[0].obstacles[0].y_min_m - dy for dy in (0.0, 0.05, 0.1)])
+    assert runtime.controller_version == 3
+    assert [d.t_ns / NS_PER_S for d in log.decisions[:3]] == pytest.approx([1.05, 3.05, 5.05])
+    versions = [d.controller_version for d in log.decisions]
+    assert versions[:3] == [1, 2, 3]
+    assert set(versions[3:]) == {3}  # the later reports only renewed its stamp
+    _assert_stale_over_the_silent_span(runtime, log)
+    assert runtime._controller_layout is not None
+    assert runtime._controller_layout.t_ns == 14 * NS_PER_S
+    assert runtime._controller_layout.obstacles == solved[-1].obstacles
+
+
+class _Deferred(Resynthesizer[SymbolicController]):
+    """A resynthesizer whose syntheses finish only when told (as a thread's would, later)."""
+
+    def __init__(self, solve: Callable[[ObstacleLayout], SymbolicController]) -> None:
+        super().__init__(solve, ResynthesisMode.INLINE)
+        self.held: list[ObstacleLayout] = []
+
+    @property
+    def busy(self) -> bool:
+        return bool(self.held)
+
+    def submit(self, layout: ObstacleLayout) -> None:
+        self.held.append(layout)
+
+    def finish(self) -> None:
+        for layout in self.held:
+            super().submit(layout)
+        self.held.clear()
+
+
+class _Reports:
+    """An obstacle source serving whatever report the test set last."""
+
+    def __init__(self, layout: ObstacleLayout) -> None:
+        self.layout = layout
+
+    def latest(self) -> ObstacleLayout:
+        return self.layout
+
+
+def test_a_synthesis_finishing_after_a_renewal_keeps_the_renewed_stamp(
+    setup: tuple[Scenario, SymbolicAdapter, Path],
+) -> None:
+    coarse, adapter, folder = setup
+    scenario = dataclasses.replace(
+        coarse, obstacles=tuple(dataclasses.replace(o, max_speed_mps=0.05)
+                                for o in coarse.obstacles))
+    still = layout_from_scenario(scenario).obstacles
+    sim = SimWorld(SimConfig(start=default_start(scenario), seed=1, obstacles=still))
+    reports = _Reports(ObstacleLayout(1 * NS_PER_S, still))
+    world = World(sim.clock, sim.pose, sim.imu, reports, sim.thrusters)
+    log = MemoryLog()
+    runtime = build_runtime(
+        scenario, world, log, LoopConfig(resynthesis_period_s=None),
+        synthesizer_for(scenario, folder / "tables"), ResynthesisMode.INLINE,
+        solver=lambda layout: adapter,
+    )
+    deferred = _Deferred(lambda layout: adapter)
+    runtime.resynthesizer = deferred
+
+    def step(t_s: float) -> None:
+        runtime._watch_obstacles(round(t_s * NS_PER_S))
+        runtime._swap_controller(round(t_s * NS_PER_S))
+
+    step(1.0)  # the 1-s report: submitted, being solved
+    assert [layout.t_ns for layout in deferred.held] == [NS_PER_S]
+    reports.layout = ObstacleLayout(2 * NS_PER_S, still)
+    step(2.0)  # the same shapes, fresher: renewed, not submitted
+    assert [layout.t_ns for layout in deferred.held] == [NS_PER_S]
+    deferred.finish()
+    step(2.5)  # the 1-s synthesis is in: it relies on the renewed 2-s report
+    assert runtime.controller_version == 1
+    assert runtime._controller_layout == ObstacleLayout(2 * NS_PER_S, still)
+    reports.layout = ObstacleLayout(3 * NS_PER_S, still)
+    step(3.0)  # renewed in force: no synthesis, the same version
+    assert not deferred.held
+    assert runtime.controller_version == 1
+    assert runtime._controller_layout == ObstacleLayout(3 * NS_PER_S, still)
+    moved = (still[0].translate(0.0, -0.05), *still[1:])
+    reports.layout = ObstacleLayout(4 * NS_PER_S, moved)
+    step(4.0)  # moved: submitted; the controller in force keeps its own report
+    assert deferred.held == [ObstacleLayout(4 * NS_PER_S, moved)]
+    reports.layout = ObstacleLayout(5 * NS_PER_S, moved)
+    step(5.0)  # a renewal of the moved shapes leaves the still ones' report as it was
+    assert runtime._controller_layout == ObstacleLayout(3 * NS_PER_S, still)
+    deferred.finish()
+    step(5.5)
+    assert runtime.controller_version == 2
+    assert runtime._controller_layout == ObstacleLayout(5 * NS_PER_S, moved)
+    # Every report was recorded, renewals too.
+    assert [layout.t_ns / NS_PER_S for layout in log.layouts] == [1.0, 2.0, 3.0, 4.0, 5.0]
 
 
 def test_fixed_obstacles_never_age(setup: tuple[Scenario, SymbolicAdapter, Path]) -> None:
