@@ -13,7 +13,10 @@ class EventCode(enum.Enum):
     SYNTHESIS_FAILED = "synthesis_failed"
     """No controller for the new layout: the previous one is kept if still valid, else stop."""
     SYNTHESIS_OVERRUN = "synthesis_overrun"
-    """Synthesis slower than its period: the last controller stays in charge."""
+    """Synthesis slower than its period: the last controller stays in charge. Also (WARN)
+    a controller for moving obstacles that arrived older than ``max_report_age_s`` after
+    its report (the text gives both times): it is swapped in, and decisions wait for a
+    fresher report of the same shapes to renew it (``obstacles_stale`` until then)."""
     NOT_WINNING = "not_winning"
     """The estimate is outside the winning set: the vessel is stopped (nu_ref = 0); the
     run is aborted at the run's first decision, or when the next decision is still not

@@ -351,6 +351,31 @@ class Runtime:
         if current is not None and current.obstacles == layout.obstacles:
             self._controller_layout = layout
 
+    def _warn_if_stale_on_arrival(self, t_ns: int, version: int, seconds: float) -> None:
+        """Say when a controller for moving obstacles arrives older than its report may be.
+
+        Its decisions would all be refused (``obstacles_stale``) unless a fresher report
+        of the same shapes renews it: with obstacles that keep moving, a synthesis slower
+        than ``max_report_age_s`` never yields a usable controller.
+        """
+        max_age = self.obstacle_max_age_s
+        layout = self._controller_layout
+        if max_age is None or layout is None:
+            return
+        age_s = (t_ns - layout.t_ns) / NS_PER_S
+        if age_s <= max_age:
+            return
+        self._event(
+            t_ns,
+            EventLevel.WARN,
+            EventCode.SYNTHESIS_OVERRUN,
+            f"controller v{version} arrived {age_s:.2f} s after its obstacle report "
+            f"(synthesis {seconds:.2f} s), older than max_report_age_s = {max_age:g} s: "
+            "usable only once a fresher report of the same shapes renews it; with "
+            "obstacles that keep moving, raise [obstacle_motion] max_report_age_s above "
+            "the synthesis time or give the synthesis more cores ([loop] synthesis_threads)",
+        )
+
     def _swap_controller(self, t_ns: int) -> None:
         result = self.resynthesizer.poll()
         if result is None:
@@ -367,6 +392,7 @@ class Runtime:
                 and submitted.t_ns > result.layout.t_ns
             )
             self._controller_layout = submitted if renewed else result.layout
+            self._warn_if_stale_on_arrival(t_ns, result.version, result.seconds)
             self.stats.resyntheses += 1
             self.stats.synthesis_seconds.append(result.seconds)
             if self.mode is Mode.WAITING:

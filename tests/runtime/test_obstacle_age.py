@@ -256,6 +256,49 @@ def test_a_synthesis_finishing_after_a_renewal_keeps_the_renewed_stamp(
     assert [layout.t_ns / NS_PER_S for layout in log.layouts] == [1.0, 2.0, 3.0, 4.0, 5.0]
 
 
+def test_a_controller_arriving_older_than_the_max_age_is_named(
+    setup: tuple[Scenario, SymbolicAdapter, Path],
+) -> None:
+    coarse, adapter, folder = setup
+    scenario = dataclasses.replace(
+        coarse, obstacles=tuple(dataclasses.replace(o, max_speed_mps=0.05)
+                                for o in coarse.obstacles))
+    still = layout_from_scenario(scenario).obstacles
+    moved = (still[0].translate(0.0, -0.05), *still[1:])
+    sim = SimWorld(SimConfig(start=default_start(scenario), seed=1, obstacles=still))
+    reports = _Reports(ObstacleLayout(1 * NS_PER_S, still))
+    world = World(sim.clock, sim.pose, sim.imu, reports, sim.thrusters)
+    log = MemoryLog()
+    runtime = build_runtime(
+        scenario, world, log, LoopConfig(resynthesis_period_s=None),
+        synthesizer_for(scenario, folder / "tables"), ResynthesisMode.INLINE,
+        solver=lambda layout: adapter,
+    )
+    assert runtime.obstacle_max_age_s == 1.0
+    deferred = _Deferred(lambda layout: adapter)
+    runtime.resynthesizer = deferred
+
+    def step(t_s: float) -> list[str]:
+        runtime._watch_obstacles(round(t_s * NS_PER_S))
+        runtime._swap_controller(round(t_s * NS_PER_S))
+        return [text for _, _, code, text in log.events if code == "synthesis_overrun"]
+
+    step(1.0)
+    deferred.finish()
+    assert step(1.5) == []  # 0.5 s after its report: in time
+    reports.layout = ObstacleLayout(2 * NS_PER_S, moved)
+    step(2.0)  # moved: submitted; the solver takes 1.5 s
+    deferred.finish()
+    warned = step(3.5)
+    assert len(warned) == 1
+    assert "controller v2 arrived 1.50 s after its obstacle report" in warned[0]
+    assert "max_report_age_s = 1 s" in warned[0]
+    assert runtime.controller_version == 2
+    reports.layout = ObstacleLayout(4 * NS_PER_S, moved)
+    assert len(step(4.0)) == 1  # a fresher report of its shapes renews it: nothing new
+    assert runtime._controller_layout == ObstacleLayout(4 * NS_PER_S, moved)
+
+
 def test_fixed_obstacles_never_age(setup: tuple[Scenario, SymbolicAdapter, Path]) -> None:
     runtime, log, solved = _run(setup, 0.0)
     assert runtime.obstacle_max_age_s is None
