@@ -32,6 +32,7 @@ from hil.controllers.symbolic.sweep import (
     viable_words,
 )
 from hil.core.jit import njit
+from hil.core.memory import require_bytes
 
 BoolArray = NDArray[np.bool_]
 I32Array = NDArray[np.int32]
@@ -154,6 +155,26 @@ class Synthesizer:
         self._psi_hi = np.ascontiguousarray(flat[:, 1])
 
     @property
+    def solve_bytes(self) -> int:
+        """Return about how many bytes one solve allocates (its masks, words and result)."""
+        nx, ny, npsi = self._tables.grid.shape
+        m = self._tables.n_inputs
+        px, ph, pw = (int(p) for p in self._pads)
+        nw = (ny + 63) // 64
+        n_ranges = int(self._psi_lo.shape[0])
+        rows_words = m * nx * npsi * nw * 8  # one (m, n_rows, nw) array of words
+        return (
+            n_ranges * nx * (ny + 8 * nw)  # free masks and their words
+            + N_CLASSES * rows_words  # viable
+            + m * (nx + 2 * px) * (npsi + 2 * ph) * (nw + 2 * pw) * 8  # W
+            + 3 * rows_words  # B, new A, new B
+            + N_PLANES * rows_words  # values
+            + 2 * rows_words // 8  # kill
+            + 2 * nx * ny * npsi * 4  # the controller's values from rest, and a layer's
+            + (int(self._f_layers) + 1) * (nx + 2 * px) * (nw + 2 * pw) * 8
+        )
+
+    @property
     def tables(self) -> Tables:
         """Return the tables this synthesizer solves on."""
         return self._tables
@@ -249,6 +270,9 @@ class Synthesizer:
 
         Raises:
             GridError: Masks of the wrong shape.
+            MemoryError: The solve needs more memory than this process can allocate
+                (:attr:`solve_bytes`; checked first: Linux would hand it out and kill
+                the process when touched).
         """
         t = self._tables
         grid = t.grid
@@ -260,6 +284,7 @@ class Synthesizer:
                 f"masks must have shapes {(n_ranges, nx, ny)!r} and {(nx, ny, npsi)!r}, "
                 f"got {free.shape!r} and {target.shape!r}"
             )
+        require_bytes(self.solve_bytes, f"a solve on the {nx} x {ny} x {npsi} grid, {m} inputs")
         t0 = time.perf_counter() if start is None else start
         px, ph, pw = (int(p) for p in self._pads)
         nw = (ny + 63) // 64
