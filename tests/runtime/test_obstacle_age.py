@@ -203,9 +203,14 @@ class _Reports:
         return self.layout
 
 
-def test_a_synthesis_finishing_after_a_renewal_keeps_the_renewed_stamp(
+def _deferred_runtime(
     setup: tuple[Scenario, SymbolicAdapter, Path],
-) -> None:
+) -> tuple[Runtime, _Deferred, _Reports, MemoryLog]:
+    """A runtime on coarse with O1 and O2 tracked at 0.05 m/s, its syntheses held back.
+
+    The reports start with the still layout stamped 1 s; the test steps the loop's
+    obstacle bookkeeping by hand.
+    """
     coarse, adapter, folder = setup
     scenario = dataclasses.replace(
         coarse, obstacles=tuple(dataclasses.replace(o, max_speed_mps=0.05)
@@ -222,6 +227,14 @@ def test_a_synthesis_finishing_after_a_renewal_keeps_the_renewed_stamp(
     )
     deferred = _Deferred(lambda layout: adapter)
     runtime.resynthesizer = deferred
+    return runtime, deferred, reports, log
+
+
+def test_a_synthesis_finishing_after_a_renewal_keeps_the_renewed_stamp(
+    setup: tuple[Scenario, SymbolicAdapter, Path],
+) -> None:
+    runtime, deferred, reports, log = _deferred_runtime(setup)
+    still = reports.layout.obstacles
 
     def step(t_s: float) -> None:
         runtime._watch_obstacles(round(t_s * NS_PER_S))
@@ -259,24 +272,10 @@ def test_a_synthesis_finishing_after_a_renewal_keeps_the_renewed_stamp(
 def test_a_controller_arriving_older_than_the_max_age_is_named(
     setup: tuple[Scenario, SymbolicAdapter, Path],
 ) -> None:
-    coarse, adapter, folder = setup
-    scenario = dataclasses.replace(
-        coarse, obstacles=tuple(dataclasses.replace(o, max_speed_mps=0.05)
-                                for o in coarse.obstacles))
-    still = layout_from_scenario(scenario).obstacles
+    runtime, deferred, reports, log = _deferred_runtime(setup)
+    still = reports.layout.obstacles
     moved = (still[0].translate(0.0, -0.05), *still[1:])
-    sim = SimWorld(SimConfig(start=default_start(scenario), seed=1, obstacles=still))
-    reports = _Reports(ObstacleLayout(1 * NS_PER_S, still))
-    world = World(sim.clock, sim.pose, sim.imu, reports, sim.thrusters)
-    log = MemoryLog()
-    runtime = build_runtime(
-        scenario, world, log, LoopConfig(resynthesis_period_s=None),
-        synthesizer_for(scenario, folder / "tables"), ResynthesisMode.INLINE,
-        solver=lambda layout: adapter,
-    )
     assert runtime.obstacle_max_age_s == 1.0
-    deferred = _Deferred(lambda layout: adapter)
-    runtime.resynthesizer = deferred
 
     def step(t_s: float) -> list[str]:
         runtime._watch_obstacles(round(t_s * NS_PER_S))
