@@ -25,28 +25,19 @@ from hil.core.records import EventLevel
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample
 from hil.runs.guarantee import judge_run
 from hil.runs.sim_run import build_runtime, default_start, synthesizer_for
-from hil.runtime.assembly import EkfObserver, LayoutSolver, SymbolicAdapter, layout_from_scenario
+from hil.runtime.assembly import EkfObserver, SymbolicAdapter, layout_from_scenario
 from hil.runtime.loop import Runtime, World
 from hil.runtime.monitor import Monitor
 from hil.runtime.resynthesis import ResynthesisMode
 from hil.runtime.settings import NS_PER_S, LoopConfig
 from hil.runtime.trace import MemoryLog
-from hil.scenarios import Scenario, load_scenario
+from hil.scenarios import Scenario
 from hil.sim.plant import TR_ETA
 
 FloatArray = NDArray[np.float64]
 Shift = Callable[[int, FloatArray], FloatArray]
 
 MONITOR_CODES = {"tube_exit", "successor_miss", "value_not_decreasing"}
-
-
-@pytest.fixture(scope="module")
-def setup(tmp_path_factory: pytest.TempPathFactory) -> tuple[Scenario, SymbolicAdapter, Path]:
-    folder = tmp_path_factory.mktemp("monitor")
-    scenario = load_scenario("coarse")
-    synthesizer = synthesizer_for(scenario, folder / "tables")
-    adapter = LayoutSolver(scenario, synthesizer)(layout_from_scenario(scenario))
-    return scenario, adapter, folder
 
 
 class _ShiftedObserver:

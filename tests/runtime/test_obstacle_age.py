@@ -24,13 +24,13 @@ from hil.adapters.sim import ObstacleMotion, SimConfig, SimWorld
 from hil.core.records import EventLevel
 from hil.core.samples import ObstacleLayout
 from hil.runs.sim_run import build_runtime, default_start, synthesizer_for
-from hil.runtime.assembly import LayoutSolver, SymbolicAdapter, layout_from_scenario
+from hil.runtime.assembly import SymbolicAdapter, layout_from_scenario
 from hil.runtime.loop import Runtime, World
 from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer
 from hil.runtime.settings import NS_PER_S, LoopConfig
 from hil.runtime.stack import SymbolicController
 from hil.runtime.trace import MemoryLog
-from hil.scenarios import Scenario, load_scenario
+from hil.scenarios import Scenario
 
 SILENT_S = (6.0, 10.0)  # the tracker reports nothing in [6, 10) s
 
@@ -47,15 +47,6 @@ class _SilentTracker:
         if self._last is None or not SILENT_S[0] <= t_s < SILENT_S[1]:
             self._last = self._sim.obstacles.latest()
         return self._last
-
-
-@pytest.fixture(scope="module")
-def setup(tmp_path_factory: pytest.TempPathFactory) -> tuple[Scenario, SymbolicAdapter, Path]:
-    folder = tmp_path_factory.mktemp("obstacle-age")
-    scenario = load_scenario("coarse")
-    synthesizer = synthesizer_for(scenario, folder / "tables")
-    adapter = LayoutSolver(scenario, synthesizer)(layout_from_scenario(scenario))
-    return scenario, adapter, folder
 
 
 STILL = ObstacleMotion(0, (0.0, 0.0), 0.0, 0.0)
