@@ -157,8 +157,12 @@ def build_runtime(
         solver: Layout -> controller; a :class:`LayoutSolver` if None.
         gains: Velocity-PID gains; None: the shipped ones.
     """
-    solve = solver if solver is not None else LayoutSolver(scenario, synthesizer)
-    resynthesizer: Resynthesizer[SymbolicController] = Resynthesizer(solve, mode)
+    layout_solver = LayoutSolver(scenario, synthesizer)
+    solve = solver if solver is not None else layout_solver
+    # In a thread a new layout's controller is put in force as soon as it covers the
+    # vessel's state (the solve's early stop), before the full solve ends.
+    resynthesizer: Resynthesizer[SymbolicController] = Resynthesizer(
+        solve, mode, stages=layout_solver.stages if solver is None else None)
     return Runtime(world, EkfObserver(start_nu=start_nu), low_level_for(loop.loop_hz, gains),
                    resynthesizer, select, log, loop, scenario_hash(scenario),
                    estimation_position_m=scenario.transient.estimation_position_m,

@@ -7,6 +7,7 @@ controller with its re-synthesis each get a thin adapter here, so the loop in
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -21,10 +22,12 @@ from hil.controllers.symbolic import (
     NoWinningSetError,
     SymbolicProblem,
     Synthesizer,
+    Watch,
     cost,
 )
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
 from hil.core.shapes import Rect
+from hil.runtime.resynthesis import VesselState
 from hil.runtime.stack import LowLevelOutput
 from hil.scenarios import Obstacle, Scenario
 
@@ -109,8 +112,9 @@ class PidAllocator:
 def low_level_for(loop_hz: float, gains: PidGains | None = None) -> PidAllocator:
     """Return the vessel's low level for a loop at `loop_hz` (default gains if None)."""
     params = LowLevelParams(dt_s=1.0 / loop_hz)
-    return PidAllocator(LowLevelController(
-        params if gains is None else replace(params, gains=gains)))
+    return PidAllocator(
+        LowLevelController(params if gains is None else replace(params, gains=gains))
+    )
 
 
 class SymbolicAdapter:
@@ -219,13 +223,40 @@ class LayoutSolver:
         Raises:
             NoWinningSetError: No cell outside the target is winning.
         """
+        controller = self.synthesizer.solve_problem(self._problem(layout))
+        self._require_winning(controller, layout)
+        return SymbolicAdapter(controller)
+
+    def stages(
+        self, layout: ObstacleLayout, vessel: VesselState
+    ) -> Iterator[tuple[SymbolicAdapter, bool]]:
+        """Yield (controller, complete): first one covering `vessel` if it comes early.
+
+        The early controller is yielded once the vessel's (cell, reference) joined
+        (:meth:`Synthesizer.solve_stages`); a state outside the grid watches nothing.
+
+        Raises:
+            NoWinningSetError: No cell outside the target is winning (full solve).
+        """
+        problem = self._problem(layout)
+        cell = problem.grid.cell_of(vessel.eta)
+        watch = None if cell is None else Watch(cell, vessel.reference)
+        for controller in self.synthesizer.solve_stages(problem, watch):
+            complete = controller.stats.complete
+            if complete:
+                self._require_winning(controller, layout)
+            yield SymbolicAdapter(controller), complete
+
+    def _problem(self, layout: ObstacleLayout) -> SymbolicProblem:
         scenario = self.scenario.with_obstacles(obstacles_from_layout(self.scenario, layout))
-        controller = self.synthesizer.solve_problem(SymbolicProblem.from_scenario(scenario))
+        return SymbolicProblem.from_scenario(scenario)
+
+    @staticmethod
+    def _require_winning(controller: Controller, layout: ObstacleLayout) -> None:
         if not controller.has_winning_start:
             raise NoWinningSetError(
                 f"no winning cell outside the target for the layout at t={layout.t_ns} ns"
             )
-        return SymbolicAdapter(controller)
 
 
 def warm_up_kernels(loop_hz: float = 20.0) -> None:

@@ -34,7 +34,7 @@ from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterComm
 from hil.core.transient import START_PERIODS
 from hil.runtime.events import EventCode
 from hil.runtime.monitor import Monitor, Violation
-from hil.runtime.resynthesis import Resynthesizer
+from hil.runtime.resynthesis import Resynthesizer, SynthesisResult, VesselState
 from hil.runtime.settings import NS_PER_S, LoopConfig
 from hil.runtime.stack import LowLevel, Observer, RunLog, SymbolicController
 from hil.runtime.stats import RunStats
@@ -140,6 +140,11 @@ class Runtime:
         self.controller: SymbolicController | None = None
         self.controller_version = 0
         self._controller_layout: ObstacleLayout | None = None
+        # An early controller of the synthesis still running (it covers the state the
+        # vessel was in at submission and every state of a lower value), with its
+        # version and layout; taken for a decision only where it covers the state.
+        self._early: SynthesisResult[SymbolicController] | None = None
+        self._in_force_early = False  # the controller in force is such an early one
         self._submitted_layout: ObstacleLayout | None = None
         self._last_submit_ns: int | None = None
         self._last_pose_ns: int | None = None
@@ -209,8 +214,9 @@ class Runtime:
         if self._estimating_since_ns is None:
             self._estimating_since_ns = t_ns
         if t_ns >= self._next_decision_ns and self._observer_settled(t_ns):
+            self._take_early(t_ns, eta_hat)
             # A stale obstacle report leaves the decision due: taken once a fresher one is in.
-            if self._obstacles_fresh(t_ns):
+            if self._ready_to_decide(t_ns):
                 for violation in self.monitor.at_decision(t_ns, eta_hat):
                     self._violation(t_ns, violation)
                 self._decide(t_ns, eta_hat, nu_hat)
@@ -225,11 +231,9 @@ class Runtime:
                 # decision from the estimated velocity, now.
                 self._violation(t_ns, exit_)
                 self._reference_index = None
-                if self._obstacles_fresh(t_ns):
+                if self._ready_to_decide(t_ns):
                     self._decide(t_ns, eta_hat, nu_hat)
-                    self._next_decision_ns = t_ns + round(
-                        self.config.decision_period_s * NS_PER_S
-                    )
+                    self._next_decision_ns = t_ns + round(self.config.decision_period_s * NS_PER_S)
                     if self._abort is not None:
                         self._stop(t_ns, EventCode.ABORTED, self._abort)
                         return
@@ -337,7 +341,21 @@ class Runtime:
             return
         self._submitted_layout = layout
         self._last_submit_ns = t_ns
-        self.resynthesizer.submit(layout)
+        self.resynthesizer.submit(layout, self._vessel_state())
+
+    def _vessel_state(self) -> VesselState | None:
+        """Return the state an early controller must cover: mid-run, the reference in force.
+
+        None when the next decision is a first one (start, after a stop or a hold): a
+        first decision may take any input into the winning set at any value, which only
+        the full solve knows.
+        """
+        if self._reference_index is None or self._first_left > 0:
+            return None
+        estimate = self.observer.estimate()
+        if estimate is None:
+            return None
+        return VesselState(estimate[0].copy(), self._reference_index)
 
     def _renew(self, layout: ObstacleLayout) -> None:
         """Take a fresher report of the submitted shapes as the newest, without synthesis.
@@ -380,18 +398,24 @@ class Runtime:
         result = self.resynthesizer.poll()
         if result is None:
             return
+        if result.controller is not None and not result.complete:
+            self._early = result
+            self._event(
+                t_ns,
+                EventLevel.DEBUG,
+                EventCode.CONTROLLER_READY,
+                f"controller v{result.version} early in {result.seconds:.3f} s: it covers the "
+                "vessel's state and every state of a lower value; the full solve goes on",
+            )
+            return
+        self._early = None
+        self._in_force_early = False
         if result.controller is not None:
             self.controller = result.controller
             self.controller_version = result.version
             # A fresher report of the same shapes may have come in while it was solved:
             # the controller relies on the newest (renewed) one.
-            submitted = self._submitted_layout
-            renewed = (
-                submitted is not None
-                and submitted.obstacles == result.layout.obstacles
-                and submitted.t_ns > result.layout.t_ns
-            )
-            self._controller_layout = submitted if renewed else result.layout
+            self._controller_layout = self._renewed(result.layout)
             self._warn_if_stale_on_arrival(t_ns, result.version, result.seconds)
             self.stats.resyntheses += 1
             self.stats.synthesis_seconds.append(result.seconds)
@@ -426,6 +450,51 @@ class Runtime:
             f"{result.error}; no valid controller, stopping the vessel",
         )
         self._abort = f"synthesis failed ({result.error}); no controller to go on with"
+
+    def _take_early(self, t_ns: int, eta_hat: FloatArray) -> None:
+        """Put the early controller in force when it covers this (non-first) decision.
+
+        It then answers exactly as the full one will: the state's value is at most the
+        level it was solved to, so every successor it relies on is final.
+        """
+        early = self._early
+        reference = self._reference_index
+        if early is None or early.controller is None or reference is None:
+            return
+        if self._first_left > 0 or math.isinf(early.controller.value(eta_hat, reference, False)):
+            return
+        self._early = None
+        self._in_force_early = True
+        self.controller = early.controller
+        self.controller_version = early.version
+        self._controller_layout = self._renewed(early.layout)
+        self._warn_if_stale_on_arrival(t_ns, early.version, early.seconds)
+        self.stats.early_controllers += 1
+
+    def _ready_to_decide(self, t_ns: int) -> bool:
+        """Return whether a decision may be taken now; else the reference goes to zero.
+
+        A first decision under an early controller waits for the full solve (it may take
+        any input into the winning set, at any value); a decision whose obstacle report
+        is too old waits for a fresher one (:meth:`_obstacles_fresh`).
+        """
+        if self._in_force_early and (self._reference_index is None or self._first_left > 0):
+            self._reference_index = None
+            self.monitor.clear()
+            self._set_reference(np.zeros(3))
+            return False
+        return self._obstacles_fresh(t_ns)
+
+    def _renewed(self, layout: ObstacleLayout) -> ObstacleLayout:
+        """Return the newest report of `layout`'s shapes (a renewal while it was solved)."""
+        submitted = self._submitted_layout
+        if (
+            submitted is not None
+            and submitted.obstacles == layout.obstacles
+            and submitted.t_ns > layout.t_ns
+        ):
+            return submitted
+        return layout
 
     def _check_stop(self, t_ns: int) -> bool:
         if self._abort is not None:
@@ -468,8 +537,12 @@ class Runtime:
         if age_s <= max_age:
             if self._obstacles_stale:
                 self._obstacles_stale = False
-                self._event(t_ns, EventLevel.INFO, EventCode.OBSTACLES_BACK,
-                            f"obstacle report {age_s:.2f} s old; deciding again")
+                self._event(
+                    t_ns,
+                    EventLevel.INFO,
+                    EventCode.OBSTACLES_BACK,
+                    f"obstacle report {age_s:.2f} s old; deciding again",
+                )
             return True
         if not self._obstacles_stale:
             self._obstacles_stale = True
@@ -586,9 +659,7 @@ class Runtime:
         self._reference_index = chosen_index if chosen_index >= 0 else None
         if chosen_index >= 0:
             self._first_left = max(self._first_left - 1, 0)
-            self.monitor.start(
-                t_ns, controller.contract(eta_hat, chosen_index, reference, first)
-            )
+            self.monitor.start(t_ns, controller.contract(eta_hat, chosen_index, reference, first))
         self.stats.decisions += 1
         self.log.decision(
             Decision.from_arrays(

@@ -30,6 +30,7 @@ class RunStats:
     tick_wall_ns: list[int] = field(default_factory=list)
     decisions: int = 0
     resyntheses: int = 0
+    early_controllers: int = 0
     synthesis_seconds: list[float] = field(default_factory=list)
     failed_syntheses: int = 0
     rejected_samples: int = 0

@@ -26,7 +26,7 @@ from hil.core.samples import ObstacleLayout
 from hil.runs.sim_run import build_runtime, default_start, synthesizer_for
 from hil.runtime.assembly import SymbolicAdapter, layout_from_scenario
 from hil.runtime.loop import Runtime, World
-from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer
+from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer, VesselState
 from hil.runtime.settings import NS_PER_S, LoopConfig
 from hil.runtime.stack import SymbolicController
 from hil.runtime.trace import MemoryLog
@@ -175,7 +175,7 @@ class _Deferred(Resynthesizer[SymbolicController]):
     def busy(self) -> bool:
         return bool(self.held)
 
-    def submit(self, layout: ObstacleLayout) -> None:
+    def submit(self, layout: ObstacleLayout, vessel: VesselState | None = None) -> None:
         self.held.append(layout)
 
     def finish(self) -> None:

@@ -30,7 +30,7 @@ from hil.controllers.symbolic.grid import Grid, obstacle_mask, target_mask
 from hil.controllers.symbolic.hull import free_masks, hull_half_extents, target_cells
 from hil.controllers.symbolic.problem import SymbolicProblem
 from hil.controllers.symbolic.selection import cost, select
-from hil.controllers.symbolic.synthesis import Synthesizer, synthesize
+from hil.controllers.symbolic.synthesis import Synthesizer, Watch, synthesize
 
 __all__ = [
     "Controller",
@@ -45,6 +45,7 @@ __all__ = [
     "SynthesisStats",
     "Synthesizer",
     "Tables",
+    "Watch",
     "build_tables",
     "cells_of",
     "cost",

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -52,6 +52,9 @@ class SynthesisStats:
         target_cells: Cells in the target (all headings).
         peak_bytes: Largest memory the synthesis held at once (bytes, traced).
         threads: Threads the kernel ran on.
+        complete: False for an early controller: the solve stopped after `levels`
+            levels (the state it was asked for joined), so it holds every state of
+            value <= `levels` with its final value and safe inputs, and no other.
     """
 
     levels: int
@@ -61,6 +64,7 @@ class SynthesisStats:
     target_cells: int
     peak_bytes: int = 0
     threads: int = 1
+    complete: bool = True
 
     @property
     def winning_fraction(self) -> float:
@@ -108,15 +112,7 @@ class Controller:
         rest_values.flags.writeable = False
         self._rest_values = rest_values
         winning_rest = int(np.count_nonzero(rest_values >= 0))
-        self.stats = SynthesisStats(
-            stats.levels,
-            stats.seconds,
-            winning_rest,
-            stats.free_cells,
-            stats.target_cells,
-            stats.peak_bytes,
-            stats.threads,
-        )
+        self.stats = replace(stats, winning_cells=winning_rest)
 
     # ------------------------------------------------------------------ properties
 

@@ -30,7 +30,9 @@ is its bit in plane q.
 
 The fixed point follows the frontier: after each level only rows (u, i, k) whose
 successor boxes reach a row of W_u that changed are swept. Levels are exact BFS levels
-(a state joins at level L + 1 from the states of level <= L), as the dense solver.
+(a state joins at level L + 1 from the states of level <= L), as the dense solver. The
+caller drives it one level per call (:func:`advance_level_serial`), so it may stop
+once the state it needs joined: every state below that level is final.
 """
 
 from __future__ import annotations
@@ -46,10 +48,11 @@ I32Array = NDArray[np.int32]
 U8Array = NDArray[np.uint8]
 
 __all__ = [
+    "advance_level_parallel",
+    "advance_level_serial",
     "erode_free",
-    "fixed_point_parallel",
-    "fixed_point_serial",
     "init_layers",
+    "start_levels",
     "successor_run",
     "viable_words",
 ]
@@ -455,7 +458,33 @@ def _activate_layer(
 
 
 @njit
-def fixed_point_serial(
+def start_levels(
+    W: U64Array,
+    planes: U64Array,
+    reach: I32Array,
+    h_reach: I32Array,
+    chmask: U64Array,
+    umask: U64Array,
+) -> int:
+    """Mark the rows the goal's rows activate; return how many goal rows there were.
+
+    On entry W holds the goal in every layer and chmask marks its rows
+    (:func:`init_layers`); umask is zero. Then :func:`advance_level_serial` (or its
+    parallel twin) joins one level per call.
+    """
+    m = W.shape[0]
+    nx = planes.shape[1]
+    npsi = planes.shape[2]
+    row_i, row_k = _row_cells(nx, npsi)
+    n_changed = 0
+    for u in range(m):
+        n_changed += _activate_layer(u, nx, npsi, reach, h_reach, chmask, umask, row_i, row_k)
+    return n_changed
+
+
+@njit
+def advance_level_serial(
+    level: int,
     W: U64Array,
     Bset: U64Array,
     viable: U64Array,
@@ -475,47 +504,39 @@ def fixed_point_serial(
     newB: U64Array,
     kill: U8Array,
 ) -> int:
-    """Run the fixed point on the calling thread; return the number of levels (-1: too many).
+    """Join the states of value `level` + 1 on the calling thread; return the rows changed.
 
-    On entry W holds the goal in every layer and chmask marks its rows
-    (:func:`init_layers`); Bset, planes, umask and kill are zero, viable comes from
-    :func:`viable_words`. Shapes: Bset, newA, newB (m, n_rows, nw); chmask, umask,
-    hasA, hasB (m, n_rw); kill (2, m, n_rows, nw).
+    0 means the fixed point is reached. Between calls every state of value <= `level`
+    is final in W and planes and no state of a higher value is set, so a caller may
+    stop after any level (the vessel's state joined) and go on later. Shapes: Bset,
+    newA, newB (m, n_rows, nw); chmask, umask, hasA, hasB (m, n_rw); kill
+    (2, m, n_rows, nw); viable comes from :func:`viable_words`.
     """
     m = W.shape[0]
     nx = planes.shape[1]
     npsi = planes.shape[2]
     px, ph, pw = pads[0], pads[1], pads[2]
-    max_level = (1 << planes.shape[4]) - 1
     row_i, row_k = _row_cells(nx, npsi)
-    level = 0
-    n_changed = 0
     for u in range(m):
-        n_changed += _activate_layer(u, nx, npsi, reach, h_reach, chmask, umask, row_i, row_k)
-    while n_changed > 0:
-        if level + 1 > max_level:
-            return -1
-        for u in range(m):
-            _sweep_layer(
-                u, px, ph, pw, W, Bset, viable, succ, heading, umask, hasA, hasB,
-                newA, newB, kill, row_i, row_k,
-            )  # fmt: skip
-        n_changed = 0
-        for p in range(m):
-            n_changed += _apply_layer(
-                p, level + 1, npsi, px, ph, pw, W, Bset, planes, nbr, nbr_n, hasA, hasB,
-                newA, newB, chmask, row_i, row_k,
-            )  # fmt: skip
-        if n_changed == 0:
-            break
-        level += 1
+        _sweep_layer(
+            u, px, ph, pw, W, Bset, viable, succ, heading, umask, hasA, hasB,
+            newA, newB, kill, row_i, row_k,
+        )  # fmt: skip
+    n_changed = 0
+    for p in range(m):
+        n_changed += _apply_layer(
+            p, level + 1, npsi, px, ph, pw, W, Bset, planes, nbr, nbr_n, hasA, hasB,
+            newA, newB, chmask, row_i, row_k,
+        )  # fmt: skip
+    if n_changed > 0:
         for u in range(m):
             _activate_layer(u, nx, npsi, reach, h_reach, chmask, umask, row_i, row_k)
-    return level
+    return n_changed
 
 
 @njit_parallel
-def fixed_point_parallel(
+def advance_level_parallel(
+    level: int,
     W: U64Array,
     Bset: U64Array,
     viable: U64Array,
@@ -535,7 +556,7 @@ def fixed_point_parallel(
     newB: U64Array,
     kill: U8Array,
 ) -> int:
-    """Run the fixed point of :func:`fixed_point_serial` with each level's layers threaded.
+    """Run one level of :func:`advance_level_serial` with its layers threaded.
 
     Layers are independent within each phase: a sweep writes only its input's entries,
     a layer's apply writes only that layer, an activation only that layer's marks.
@@ -544,30 +565,20 @@ def fixed_point_parallel(
     nx = planes.shape[1]
     npsi = planes.shape[2]
     px, ph, pw = pads[0], pads[1], pads[2]
-    max_level = (1 << planes.shape[4]) - 1
     counts = np.zeros(m, dtype=np.int64)
     row_i, row_k = _row_cells(nx, npsi)
-    level = 0
     for u in prange(m):
-        counts[u] = _activate_layer(u, nx, npsi, reach, h_reach, chmask, umask, row_i, row_k)
+        _sweep_layer(
+            u, px, ph, pw, W, Bset, viable, succ, heading, umask, hasA, hasB,
+            newA, newB, kill, row_i, row_k,
+        )  # fmt: skip
+    for p in prange(m):
+        counts[p] = _apply_layer(
+            p, level + 1, npsi, px, ph, pw, W, Bset, planes, nbr, nbr_n, hasA, hasB,
+            newA, newB, chmask, row_i, row_k,
+        )  # fmt: skip
     n_changed = counts.sum()
-    while n_changed > 0:
-        if level + 1 > max_level:
-            return -1
-        for u in prange(m):
-            _sweep_layer(
-                u, px, ph, pw, W, Bset, viable, succ, heading, umask, hasA, hasB,
-                newA, newB, kill, row_i, row_k,
-            )  # fmt: skip
-        for p in prange(m):
-            counts[p] = _apply_layer(
-                p, level + 1, npsi, px, ph, pw, W, Bset, planes, nbr, nbr_n, hasA, hasB,
-                newA, newB, chmask, row_i, row_k,
-            )  # fmt: skip
-        n_changed = counts.sum()
-        if n_changed == 0:
-            break
-        level += 1
+    if n_changed > 0:
         for u in prange(m):
             _activate_layer(u, nx, npsi, reach, h_reach, chmask, umask, row_i, row_k)
-    return level
+    return int(n_changed)

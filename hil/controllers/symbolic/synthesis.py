@@ -11,7 +11,9 @@ import hashlib
 import threading
 import time
 import tracemalloc
-from collections import OrderedDict
+from collections import OrderedDict, deque
+from collections.abc import Iterator
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numba
@@ -21,14 +23,15 @@ from numpy.typing import NDArray
 from hil.controllers.symbolic.abstraction import N_CLASSES, Tables
 from hil.controllers.symbolic.controller import Controller, SynthesisStats
 from hil.controllers.symbolic.errors import GridError, NoWinningSetError
-from hil.controllers.symbolic.kernels import pack_rows
+from hil.controllers.symbolic.kernels import pack_rows, state_value
 from hil.controllers.symbolic.lattice import InputLattice
 from hil.controllers.symbolic.problem import SymbolicProblem
 from hil.controllers.symbolic.sweep import (
+    advance_level_parallel,
+    advance_level_serial,
     erode_free,
-    fixed_point_parallel,
-    fixed_point_serial,
     init_layers,
+    start_levels,
     viable_words,
 )
 from hil.core.jit import njit
@@ -38,7 +41,7 @@ BoolArray = NDArray[np.bool_]
 I32Array = NDArray[np.int32]
 U64Array = NDArray[np.uint64]
 
-__all__ = ["N_PLANES", "Synthesizer", "synthesize"]
+__all__ = ["N_PLANES", "Synthesizer", "Watch", "synthesize"]
 
 N_PLANES = 8
 """Bit planes of the values: at most 255 levels."""
@@ -50,6 +53,24 @@ MEMO_SIZE = 2
 
 _MEMO: OrderedDict[str, Controller] = OrderedDict()
 _MEMO_LOCK = threading.Lock()
+
+
+@dataclass(frozen=True, slots=True)
+class Watch:
+    """A state whose controller a solve hands out as soon as it covers it.
+
+    Attributes:
+        cell: Grid cell (i, j, k) of the vessel's estimate.
+        reference: Input index of the reference in force (the previous command).
+    """
+
+    cell: tuple[int, int, int]
+    reference: int
+
+    def covered_by(self, winning: U64Array, planes: U64Array, pads: I32Array) -> bool:
+        """Return whether the state has joined the winning set held in `winning`."""
+        i, j, k = self.cell
+        return bool(state_value(winning, planes, pads, self.reference, i, j, k) >= 0)
 
 
 def _max_threads() -> int:
@@ -191,6 +212,27 @@ class Synthesizer:
             GridError: The problem's grid is not the tables'.
             NoWinningSetError: `require_winning` and no state outside the target wins from rest.
         """
+        return deque(self.solve_stages(problem, require_winning=require_winning), maxlen=1)[0]
+
+    def solve_stages(
+        self,
+        problem: SymbolicProblem,
+        watch: Watch | None = None,
+        require_winning: bool = False,
+    ) -> Iterator[Controller]:
+        """Solve a problem, yielding an early controller once it covers `watch`, then the full one.
+
+        The early controller (``stats.complete`` False) holds every state of value up to
+        the level at which the watched state joined, with its final value and safe
+        inputs; states of higher values are not winning in it yet. It is yielded only
+        when the watched state joins before the fixed point; a controller this process
+        already solved is yielded at once, complete.
+
+        Raises:
+            GridError: The problem's grid is not the tables'.
+            NoWinningSetError: `require_winning` and no state outside the target wins
+                from rest (raised after the full solve, before it is yielded).
+        """
         if problem.grid != self._tables.grid:
             raise GridError("the problem's grid is not the tables' grid")
         start = time.perf_counter()
@@ -212,7 +254,14 @@ class Synthesizer:
         if cached is not None:
             controller = cached
         else:
-            controller = self._solve_traced(free, target, obstacles, int(at_rest.sum()), start)
+            if self._trace:
+                controller = self._solve_traced(free, target, obstacles, int(at_rest.sum()), start)
+            else:
+                for controller in self.stages(
+                    free, target, obstacles, int(at_rest.sum()), start, watch
+                ):
+                    if not controller.stats.complete:
+                        yield controller
             if self._memo:
                 with _MEMO_LOCK:
                     _MEMO[key] = controller
@@ -224,7 +273,7 @@ class Synthesizer:
                 f"no winning cell outside the target from rest: {s.target_cells!r} target "
                 f"cells, {s.free_cells!r} free cells, {int(obstacles.sum())!r} obstacle cells"
             )
-        return controller
+        yield controller
 
     def _solve_traced(
         self,
@@ -234,20 +283,15 @@ class Synthesizer:
         free_cells: int,
         start: float,
     ) -> Controller:
-        if self._trace:
-            with _TRACE_LOCK:
-                tracemalloc.start()
-                try:
-                    controller = self.solve(free, target, obstacles, free_cells, start)
-                    peak = tracemalloc.get_traced_memory()[1]
-                finally:
-                    tracemalloc.stop()
-            s = controller.stats
-            controller.stats = SynthesisStats(
-                s.levels, s.seconds, s.winning_cells, s.free_cells, s.target_cells, peak, s.threads
-            )
-            return controller
-        return self.solve(free, target, obstacles, free_cells, start)
+        with _TRACE_LOCK:
+            tracemalloc.start()
+            try:
+                controller = self.solve(free, target, obstacles, free_cells, start)
+                peak = tracemalloc.get_traced_memory()[1]
+            finally:
+                tracemalloc.stop()
+        controller.stats = replace(controller.stats, peak_bytes=peak)
+        return controller
 
     def solve(
         self,
@@ -273,6 +317,23 @@ class Synthesizer:
             MemoryError: The solve needs more memory than this process can allocate
                 (:attr:`solve_bytes`; checked first: Linux would hand it out and kill
                 the process when touched).
+        """
+        return deque(self.stages(free, target, obstacles, free_cells, start), maxlen=1)[0]
+
+    def stages(
+        self,
+        free: BoolArray,
+        target: BoolArray,
+        obstacles: BoolArray,
+        free_cells: int | None = None,
+        start: float | None = None,
+        watch: Watch | None = None,
+    ) -> Iterator[Controller]:
+        """Solve for masks (see :meth:`solve`), yielding the early controller of `watch` first.
+
+        The fixed point runs one BFS level at a time; after the level at which the
+        watched state joins, an early controller (``stats.complete`` False) is yielded,
+        then the solve goes on to the fixed point and yields the full controller.
         """
         t = self._tables
         grid = t.grid
@@ -327,26 +388,45 @@ class Synthesizer:
             new_a, new_b, kill,
         )  # fmt: skip
         threads = 1 if self._threads == 1 else (self._threads or _max_threads())
-        if threads == 1:
-            levels = fixed_point_serial(*args)
-        else:
-            previous = numba.get_num_threads()
+        advance = advance_level_serial if threads == 1 else advance_level_parallel
+        free_total = int((~obstacles).sum()) * npsi if free_cells is None else free_cells
+        obstacle_cells = obstacles.astype(bool)
+
+        def controller(winning: U64Array, levels: int, complete: bool) -> Controller:
+            return Controller(
+                t, lat, winning, planes, viable, self._pads, obstacle_cells, SynthesisStats(
+                    levels=levels, seconds=time.perf_counter() - t0, winning_cells=0,
+                    free_cells=free_total, target_cells=int(target.sum()), threads=threads,
+                    complete=complete,
+                ),
+            )  # fmt: skip
+
+        previous = numba.get_num_threads()
+        if threads > 1:
             numba.set_num_threads(min(threads, _max_threads()))
-            try:
-                levels = fixed_point_parallel(*args)
-            finally:
+        try:
+            level = 0
+            changed = start_levels(W, planes, self._reach, self._h_reach, chmask, umask)
+            watching = watch is not None
+            while True:
+                if watching and watch is not None and watch.covered_by(W, planes, self._pads):
+                    watching = False
+                    if changed > 0:
+                        # States of value <= level are final; the solve goes on in W, so
+                        # the early controller keeps its own copy of the winning bits
+                        # (the planes' bits of later states stay hidden behind them).
+                        yield controller(W.copy(), level, complete=False)
+                if changed == 0:
+                    break
+                if level + 1 > 2**N_PLANES - 1:
+                    raise GridError(f"the fixed point needs more than {2**N_PLANES - 1} levels")
+                changed = advance(level, *args)
+                if changed > 0:
+                    level += 1
+        finally:
+            if threads > 1:
                 numba.set_num_threads(previous)
-        if levels < 0:
-            raise GridError(f"the fixed point needs more than {2**N_PLANES - 1} levels")
-        seconds = time.perf_counter() - t0
-        return Controller(
-            t, lat, W, planes, viable, self._pads, obstacles.astype(bool), SynthesisStats(
-                levels=int(levels), seconds=seconds, winning_cells=0,
-                free_cells=int((~obstacles).sum()) * npsi if free_cells is None else free_cells,
-                target_cells=int(target.sum()),
-                threads=threads,
-            ),
-        )  # fmt: skip
+        yield controller(W, level, complete=True)
 
 
 def synthesize(
