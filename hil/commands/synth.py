@@ -2,17 +2,26 @@
 
 Prints the grid, the abstraction and synthesis times, the fixed-point iterations, the
 winning fraction of the free cells and the memory; with `--json` the same figures
-follow as one JSON object on the last line.
+follow as one JSON object on the last line. With `--start X,Y,PSI_DEG` also the time
+until a controller covers that state at rest (the solve's early stop, `start_seconds`)
+beside the full solve's.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+from hil.commands.common import start_pose
+
+if TYPE_CHECKING:
+    from hil.controllers.symbolic import SymbolicProblem, Synthesizer
 
 HELP = "synthesize the symbolic docking controller for a scenario and report its figures"
 
@@ -36,6 +45,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--repeat", type=int, default=3, help="synthesis runs; the median is reported"
     )
+    parser.add_argument(
+        "--start", type=start_pose, default=None, metavar="X,Y,PSI_DEG",
+        help="also time a solve until a controller covers this state at rest (m, m, deg)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -50,6 +63,8 @@ def run(args: argparse.Namespace) -> int:
         scenario = load_scenario(args.scenario)
         problem = SymbolicProblem.from_scenario(scenario)
         grid_text = " x ".join(str(n) for n in problem.grid.shape)
+        if args.start is not None and problem.grid.cell_of(args.start) is None:
+            raise ScenarioError(f"--start {_pose_text(args.start)} lies outside the grid")
         start = time.perf_counter()
         tables, cached = problem.tables(cache_dir=args.cache_dir, use_cache=not args.no_cache)
         abstraction_s = time.perf_counter() - start
@@ -61,6 +76,8 @@ def run(args: argparse.Namespace) -> int:
         runs = [first] + [
             synthesizer.solve_problem(problem) for _ in range(max(args.repeat, 1) - 1)
         ]
+        start_figures = None if args.start is None else _start_figures(
+            Synthesizer(tables, threads=threads, memo=False), problem, args.start)
     except (ScenarioError, SymbolicError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
@@ -99,6 +116,8 @@ def run(args: argparse.Namespace) -> int:
         "peak_memory_mb": peak_mb,
         "tables_mb": tables.nbytes() / 2**20,
     }
+    if start_figures is not None:
+        summary.update(start_figures)
     if args.save is not None:
         controller.save(args.save)
         summary["controller_file"] = str(args.save)
@@ -121,6 +140,8 @@ def run(args: argparse.Namespace) -> int:
     print(
         f"memory       {peak_mb:.1f} MB peak during synthesis, tables {summary['tables_mb']:.1f} MB"
     )
+    if start_figures is not None:
+        print(_start_text(start_figures))
     if args.save is not None:
         print(f"saved        {args.save} ({summary['controller_file_mb']:.2f} MB)")
     status = 0
@@ -133,3 +154,51 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(summary))
     return status
+
+
+def _start_figures(
+    synthesizer: Synthesizer, problem: SymbolicProblem, start: tuple[float, float, float]
+) -> dict[str, Any]:
+    """Solve once more, watching `start` at rest: when a controller covers it, and the end.
+
+    Raises:
+        ScenarioError: The start lies outside the grid.
+    """
+    import numpy as np
+
+    from hil.controllers.symbolic import Watch
+    from hil.scenarios import ScenarioError
+
+    cell = problem.grid.cell_of(start)
+    if cell is None:
+        raise ScenarioError(f"--start {_pose_text(start)} lies outside the grid")
+    rest = synthesizer.lattice.nearest(np.zeros(3))
+    stages = list(synthesizer.solve_stages(problem, Watch(cell, rest)))
+    early = stages[0] if len(stages) > 1 else None
+    full = stages[-1]
+    value = full.cell_value(cell, rest)
+    covered_at = early if early is not None else (full if value >= 0 else None)
+    return {
+        "start": list(start),
+        "start_cell": list(cell),
+        "start_value": value if value >= 0 else None,
+        "start_seconds": None if covered_at is None else covered_at.stats.seconds,
+        "start_levels": None if covered_at is None else covered_at.stats.levels,
+        "start_full_seconds": full.stats.seconds,
+    }
+
+
+def _pose_text(start: Sequence[float]) -> str:
+    return f"{start[0]:g},{start[1]:g},{math.degrees(start[2]):g}"
+
+
+def _start_text(figures: dict[str, Any]) -> str:
+    where = _pose_text(figures["start"])
+    if figures["start_seconds"] is None:
+        return (f"start        {where}: not winning at rest in this layout "
+                f"(full solve {figures['start_full_seconds']:.3f} s)")
+    return (
+        f"start        {where}: value {figures['start_value']}, covered after "
+        f"{figures['start_seconds']:.3f} s ({figures['start_levels']} levels), full solve "
+        f"{figures['start_full_seconds']:.3f} s"
+    )

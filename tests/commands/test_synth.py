@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import pytest
@@ -50,11 +51,25 @@ def test_synth_prints_a_report_and_json(tmp_path: Path, capsys: pytest.CaptureFi
     assert 0.0 < summary["peak_memory_mb"] < 600.0
     assert any(line.startswith("winning") for line in out[:-1])
     assert Controller.load(saved).stats.winning_cells == summary["winning_cells"]
-    # Second run: tables come from the cache.
-    main(["synth", "coarse", "--json", "--cache-dir", str(tmp_path), "--repeat", "1"])
-    assert (
-        json.loads(capsys.readouterr().out.strip().splitlines()[-1])["abstraction_cached"] is True
-    )
+    # Second run: tables come from the cache; the start is covered before the full solve
+    # ends, at the level of its value, which is the full controller's.
+    start = (-0.5, -1.2, 180.0)
+    main(["synth", "coarse", "--json", "--cache-dir", str(tmp_path), "--repeat", "1",
+          f"--start={start[0]},{start[1]},{start[2]}"])
+    again = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert again["abstraction_cached"] is True
+    controller = Controller.load(saved)
+    cell = controller.grid.cell_of((start[0], start[1], math.radians(start[2])))
+    assert cell is not None
+    assert again["start_cell"] == list(cell)
+    assert again["start_value"] == controller.cell_value(cell) > 0
+    assert again["start_levels"] == again["start_value"] < summary["iterations"]
+    assert 0.0 < again["start_seconds"] < again["start_full_seconds"]
+
+
+def test_synth_refuses_a_start_outside_the_grid(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["synth", "coarse", "--start=40,0,0"]) == 2
+    assert "--start 40,0,0 lies outside the grid" in capsys.readouterr().err
 
 
 def test_synth_refuses_a_target_covered_by_an_inflated_obstacle(
