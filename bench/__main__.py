@@ -14,6 +14,7 @@ BENCHMARKS = {
     "lowlevel": "bench.lowlevel",
     "observer": "bench.observer",
     "synthesis": "bench.synthesis",
+    "latency": "bench.layout_latency",
     "recorder": "bench.recorder",
     "replay": "bench.replay",
     "rerun_export": "bench.rerun_export",

@@ -25,6 +25,7 @@ from pathlib import Path
 import numba
 import numpy as np
 
+from bench import layout_latency
 from hil.controllers.symbolic import (
     Controller,
     SymbolicProblem,
@@ -86,7 +87,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--quick", action="store_true", help="fewer layouts, no scaling, no dense baseline"
     )
+    parser.add_argument(
+        "--latency-only", action="store_true",
+        help="only the time from a new layout to a controller at the vessel (bench latency)",
+    )
     args = parser.parse_args(argv)
+    layout_latency.run(quick=args.quick)
+    if args.latency_only:
+        return 0
     n_layouts = 3 if args.quick else args.layouts
     rng = np.random.default_rng(2025)
     scenario = load_scenario("paper")

@@ -33,6 +33,7 @@ from hil.runtime.settings import NS_PER_S, LoopConfig
 from hil.runtime.stack import SymbolicController
 from hil.runtime.trace import MemoryLog
 from hil.scenarios import Scenario
+from hil.sim.sensors import PoseSensorConfig
 
 FloatArray = NDArray[np.float64]
 
@@ -55,7 +56,9 @@ class _Scripted(Resynthesizer[SymbolicController]):
     ones are solved at once.
     """
 
-    def __init__(self, sim: SimWorld, full: SymbolicAdapter, early: SymbolicAdapter) -> None:
+    def __init__(
+        self, sim: SimWorld, full: SymbolicAdapter, early: SymbolicAdapter, full_after_s: float
+    ) -> None:
         super().__init__(lambda layout: full, ResynthesisMode.INLINE)
         self._sim = sim
         self._full = full
@@ -64,6 +67,7 @@ class _Scripted(Resynthesizer[SymbolicController]):
         self._queue: list[tuple[int, SynthesisResult[SymbolicController]]] = []
         self._versions = 0
         self.full_due_ns: int | None = None
+        self._full_after_ns = round(full_after_s * NS_PER_S)
 
     @property
     def busy(self) -> bool:
@@ -77,7 +81,7 @@ class _Scripted(Resynthesizer[SymbolicController]):
             self._queue.append((now, SynthesisResult(v, layout, self._full, None, 0.0)))
             return
         self.vessels.append(vessel)
-        self.full_due_ns = now + round(FULL_AFTER_S * NS_PER_S)
+        self.full_due_ns = now + self._full_after_ns
         self._queue.append((now, SynthesisResult(v, layout, self._early, None, 0.5, False)))
         self._queue.append((self.full_due_ns, SynthesisResult(v, layout, self._full, None, 3.5)))
 
@@ -91,7 +95,10 @@ class _Scripted(Resynthesizer[SymbolicController]):
 
 
 def _run(
-    setup: tuple[Scenario, SymbolicAdapter, Path], early: SymbolicAdapter | None = None
+    setup: tuple[Scenario, SymbolicAdapter, Path],
+    early: SymbolicAdapter | None = None,
+    full_after_s: float = FULL_AFTER_S,
+    pose_outages_s: tuple[tuple[float, float], ...] = (),
 ) -> tuple[Runtime, _Scripted, MemoryLog]:
     scenario, adapter, folder = setup
     sim = SimWorld(
@@ -99,6 +106,7 @@ def _run(
             start=default_start(scenario),
             seed=3,
             obstacles=layout_from_scenario(scenario).obstacles,
+            pose=PoseSensorConfig(scheduled_dropouts_s=pose_outages_s),
         ),
         max_duration_s=20.0,
     )
@@ -113,7 +121,7 @@ def _run(
         ResynthesisMode.INLINE,
         solver=lambda layout: adapter,
     )
-    scripted = _Scripted(sim, adapter, adapter if early is None else early)
+    scripted = _Scripted(sim, adapter, adapter if early is None else early, full_after_s)
     runtime.resynthesizer = scripted
     runtime.run()
     return runtime, scripted, log
@@ -158,3 +166,28 @@ def test_an_early_controller_that_does_not_cover_the_state_is_not_taken(
     assert early_version not in versions_before_full  # the old controller decided meanwhile
     assert runtime.stats.early_controllers == 0
     assert not any(d.value == math.inf for d in log.decisions)
+
+
+def test_a_first_decision_under_an_early_controller_waits_for_the_full_solve(
+    setup: tuple[Scenario, SymbolicAdapter, Path],
+) -> None:
+    # The early controller comes at 4 s and decides at 5.05 s; the pose is lost over
+    # [5.5, 6.0) s, so the next decision is a first one (at rest layer, any value): only
+    # the full solve, due at 10 s, may take it.
+    runtime, scripted, log = _run(setup, full_after_s=6.0, pose_outages_s=((5.5, 0.5),))
+    full_due_ns = scripted.full_due_ns
+    assert full_due_ns is not None
+    assert runtime.stats.early_controllers == 1
+    assert runtime.stats.pose_losses == 1
+    back_ns = next(t for t, _, code, _ in log.events if code == "pose_back")
+    assert back_ns < full_due_ns - 2 * NS_PER_S  # the filter settled well before the full one
+    waited = [d for d in log.decisions if back_ns <= d.t_ns < full_due_ns]
+    assert waited == []
+    after = [d for d in log.decisions if d.t_ns >= full_due_ns]
+    assert after[0].first
+    assert after[0].t_ns - full_due_ns <= NS_PER_S // 20  # taken the tick the full one is in
+    # From when the filter settled (the decision due) the reference is zero: a stop.
+    due_ns = back_ns + round(LoopConfig().observer_settle_s * NS_PER_S) + NS_PER_S // 20
+    held = [ref for t, ref in log.velocity_references if due_ns <= t < full_due_ns]
+    assert len(held) > 40
+    assert np.all(np.array(held) == 0.0)
