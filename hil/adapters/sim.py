@@ -18,6 +18,8 @@ from numpy.typing import NDArray
 
 from hil.adapters.interfaces import ThrusterSinkError
 from hil.core.clock import SimClock
+from hil.core.motion import ObstacleMotion as ObstacleMotion  # re-exported: SimConfig's motions
+from hil.core.motion import displacements_m
 from hil.core.samples import (
     ImuSample,
     ObstacleLayout,
@@ -45,28 +47,6 @@ from hil.sim.sensors import ImuSensorConfig, PoseSensorConfig, SimulatedImu, Sim
 
 FloatArray = NDArray[np.float64]
 NS_PER_S = 1_000_000_000
-
-
-@dataclass(frozen=True, slots=True)
-class ObstacleMotion:
-    """A scheduled constant-velocity motion of one obstacle.
-
-    Attributes:
-        index: Which obstacle (position in the layout).
-        velocity_mps: (vx, vy) in the arena frame (m/s).
-        start_s: When the motion starts (s).
-        stop_s: When it stops (s).
-    """
-
-    index: int
-    velocity_mps: tuple[float, float]
-    start_s: float
-    stop_s: float
-
-    def offset_m(self, t_s: float) -> tuple[float, float]:
-        """Return the displacement accumulated by time `t_s` (m)."""
-        moving_s = min(max(t_s, self.start_s), self.stop_s) - self.start_s
-        return self.velocity_mps[0] * moving_s, self.velocity_mps[1] * moving_s
 
 
 @dataclass(frozen=True, slots=True)
@@ -98,7 +78,8 @@ class SimConfig:
         imu: IMU model.
         load: Environmental load b(t).
         obstacles: Real obstacles at t = 0.
-        motions: Scheduled obstacle motions.
+        motions: Scheduled obstacle motions (:class:`~hil.core.motion.ObstacleMotion`);
+            motions of one obstacle add up.
         obstacle_report_period_s: How often the obstacles' positions are reported when
             motions are scheduled (s).
         thruster_outages: Spans of thruster-link failure (fault injection).
@@ -171,7 +152,9 @@ class SimObstacleSource:
 
     A world with motions reports every obstacle's position every
     ``obstacle_report_period_s``, moved or not (a tracker re-reports still obstacles too,
-    so their reports stay fresh); a world without keeps the layout of t = 0.
+    so their reports stay fresh), each displaced by the sum of its motions
+    (:func:`~hil.core.motion.displacements_m`) at the report's time; a world without
+    keeps the layout of t = 0.
     """
 
     def __init__(self, world: SimWorld) -> None:
@@ -185,11 +168,11 @@ class SimObstacleSource:
         t_ns = (self._world.clock.now_ns() // period_ns) * period_ns
         if not cfg.motions or t_ns == self._layout.t_ns:
             return self._layout
-        obstacles = list(cfg.obstacles)
-        for motion in cfg.motions:
-            dx, dy = motion.offset_m(t_ns / NS_PER_S)
-            obstacles[motion.index] = cfg.obstacles[motion.index].translate(dx, dy)
-        self._layout = ObstacleLayout(t_ns, tuple(obstacles))
+        offsets = displacements_m(cfg.motions, len(cfg.obstacles), t_ns / NS_PER_S)[:, 0]
+        moved = {m.index for m in cfg.motions}
+        self._layout = ObstacleLayout(t_ns, tuple(
+            o.translate(float(offsets[n, 0]), float(offsets[n, 1])) if n in moved else o
+            for n, o in enumerate(cfg.obstacles)))
         return self._layout
 
 

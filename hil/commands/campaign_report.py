@@ -106,6 +106,10 @@ def report(outcome: CampaignResult, *, command: str, title: str, console: Consol
                   *("{:.2f} ({:.2f}..{:.2f}) min".format(*s.docking_min) for s in all_stats),
                   "{:.2f} ({:.2f}..{:.2f}) min".format(*PAPER_TANK_MINUTES))
     table.add_row("least hull clearance", *(f"{s.min_clearance_m:.3f} m" for s in all_stats), "-")
+    if stats.moving_obstacle_runs or stats.stale_stops:
+        table.add_row("runs with moving obstacles / re-syntheses / stale-report stops",
+                      *(f"{s.moving_obstacle_runs} / {s.resyntheses} / {s.stale_stops}"
+                        for s in all_stats), "-")
     for axis, (label, paper) in enumerate(zip(("surge m/s", "sway m/s", "yaw deg/s"),
                                               (0.00768, 0.00431, 0.62108), strict=True)):
         table.add_row(f"tracking RMS, {label}",

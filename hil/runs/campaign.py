@@ -243,6 +243,10 @@ class CampaignStats:
         lost_at_start: Runs whose first decision found no safe input (the start the
             campaign drew was winning, but the vessel drifted while the observer settled
             before the first decision); the guarantee speaks of the others only.
+        moving_obstacle_runs: Runs in which some obstacle moved (the simulated world's
+            scheduled motions).
+        resyntheses: Controllers synthesized and swapped in, over all runs.
+        stale_stops: Stops for an obstacle report too old to decide on, over all runs.
     """
 
     runs: int
@@ -253,6 +257,9 @@ class CampaignStats:
     tracking_rms: tuple[float, float, float]
     wall_s_mean: float
     lost_at_start: int = 0
+    moving_obstacle_runs: int = 0
+    resyntheses: int = 0
+    stale_stops: int = 0
 
     @property
     def winning_starts(self) -> int:
@@ -278,4 +285,7 @@ class CampaignStats:
             lost_at_start=sum(
                 s.aborted and s.decisions <= 1 and s.not_winning_decisions >= 1 for s in summaries
             ),
+            moving_obstacle_runs=sum(s.moving_obstacles > 0 for s in summaries),
+            resyntheses=sum(s.resyntheses for s in summaries),
+            stale_stops=sum(s.obstacle_stale_stops for s in summaries),
         )

@@ -68,14 +68,28 @@ def distance_to_shape(hulls: FloatArray, shape: Shape) -> FloatArray:
     return out
 
 
-def hull_clearance_series(scenario: Scenario, eta: FloatArray) -> FloatArray:
+def hull_clearance_series(scenario: Scenario, eta: FloatArray,
+                          offsets_m: FloatArray | None = None) -> FloatArray:
     """Return the hull's distance to the nearest real obstacle at each pose (N, 3) -> (N,).
 
-    Zero means contact or overlap; inf when the scenario has no obstacles.
+    Args:
+        scenario: Real obstacles (where they are at t = 0) and the hull.
+        eta: Poses (x m, y m, psi rad), shape (N, 3).
+        offsets_m: Each obstacle's displacement from its scenario position at each pose's
+            time (m), shape (n_obstacles, N, 2) (:func:`~hil.core.motion.displacements_m`);
+            None: the obstacles stay where the scenario puts them.
+
+    Returns:
+        Distances (m), shape (N,): zero means contact or overlap; inf without obstacles.
     """
     eta = np.asarray(eta, dtype=np.float64).reshape(-1, 3)
-    hulls = hull_corners(scenario.hull.length_m, scenario.hull.beam_m, eta)
     out = np.full(len(eta), np.inf)
-    for obstacle in scenario.obstacles:
+    for index, obstacle in enumerate(scenario.obstacles):
+        rel = eta
+        if offsets_m is not None and np.any(offsets_m[index]):
+            # Judge in the obstacle's frame: move the vessel back by the obstacle's motion.
+            rel = eta.copy()
+            rel[:, :2] -= offsets_m[index]
+        hulls = hull_corners(scenario.hull.length_m, scenario.hull.beam_m, rel)
         out = np.minimum(out, distance_to_shape(hulls, obstacle.shape))
     return out

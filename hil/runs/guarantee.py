@@ -26,8 +26,8 @@ from itertools import pairwise
 import numpy as np
 from numpy.typing import NDArray
 
-from hil.adapters.sim import ObstacleMotion
 from hil.controllers.symbolic import Controller, DecisionContract, cells_of
+from hil.core.motion import ObstacleMotion, displacements_m
 from hil.core.records import Decision
 from hil.core.shapes import Shape
 from hil.runs.clearance import hull_corners
@@ -116,16 +116,6 @@ class GuaranteeViolations:
         return GuaranteeViolations(**out)  # type: ignore[arg-type]
 
 
-def _shape_offsets(motions: Sequence[ObstacleMotion], index: int, t_s: FloatArray) -> FloatArray:
-    """Return obstacle `index`'s displacement at each time (N,) -> (N, 2) (m)."""
-    out = np.zeros((len(t_s), 2))
-    for m in motions:
-        if m.index == index:
-            moving = np.clip(t_s, m.start_s, m.stop_s) - m.start_s
-            out += moving[:, None] * np.asarray(m.velocity_mps)[None, :]
-    return out
-
-
 def _halfplanes(shape: Shape) -> tuple[FloatArray, FloatArray]:
     """Return outward unit normals (M, 2) and offsets (M,): shape = {p : N p <= c}."""
     v = shape.vertices()
@@ -175,10 +165,11 @@ def _safety(scenario: Scenario, t_s: FloatArray, eta: FloatArray,
     n = len(eta)
     depth = np.full(n, -np.inf)
     pen = np.zeros(n)
+    offsets = displacements_m(motions, len(scenario.obstacles), t_s)
     for index, obstacle in enumerate(scenario.obstacles):
         # Judge in the obstacle's frame: move the vessel back by the obstacle's motion.
         rel = eta.copy()
-        rel[:, :2] -= _shape_offsets(motions, index, t_s)
+        rel[:, :2] -= offsets[index]
         depth = np.maximum(depth, _depth_m(rel[:, :2], obstacle.inflated))
         hulls = hull_corners(scenario.hull.length_m, scenario.hull.beam_m, rel)
         pen = np.maximum(pen, _penetration_m(hulls, obstacle.shape))
@@ -219,7 +210,9 @@ def judge_run(
             the decisions' stamps (a simulated run's from 0; a recorded true trajectory's
             from wherever it starts, see :mod:`hil.replay.truth`).
         eta: True poses (x m, y m, psi rad), shape (N, 3) indexed [time, axis].
-        motions: Scheduled obstacle motions (the real obstacles' true positions).
+        motions: Scheduled obstacle motions (the real obstacles' true positions: each
+            obstacle displaced by the sum of its motions at each time, as the simulator
+            moves it).
         tick_s: Loop period (s): an interval counts as late past tau + tick_s / 2.
 
     Returns:
@@ -304,8 +297,9 @@ def judge_outcome(spec: SimRunSpec, outcome: SimOutcome,
                   decisions: Sequence[Decision]) -> GuaranteeViolations:
     """Judge a finished simulated run (see :func:`judge_run`) on the world's truth."""
     truth = outcome.sim.truth()
+    # The world's motions: the scenario's [[simulated_motion]] and the spec's together.
     return judge_run(outcome.scenario, decisions, outcome.controllers, truth[:, 0],
-                     truth[:, 1 + TR_ETA : 1 + TR_ETA + 3], motions=spec.motions,
+                     truth[:, 1 + TR_ETA : 1 + TR_ETA + 3], motions=outcome.sim.config.motions,
                      tick_s=1.0 / spec.loop.loop_hz)
 
 

@@ -9,7 +9,6 @@ picklable, so a campaign can map it over processes.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 import time
@@ -28,6 +27,7 @@ from hil.bag.run_info import RunInfo
 from hil.controllers.pid import PidGains
 from hil.controllers.symbolic import Controller, SymbolicProblem, Synthesizer
 from hil.core.codec import from_jsonable, to_jsonable
+from hil.core.motion import displacements_m
 from hil.core.samples import ObstacleLayout
 from hil.model.environment import EnvironmentalLoad
 from hil.runs.summary import RunSummary, summarize_run
@@ -68,7 +68,8 @@ class SimRunSpec:
         loop: Loop timing and fault thresholds.
         pose_outages_s: Injected pose outages as (start_s, duration_s).
         thruster_outages: Injected thruster-link failures.
-        motions: Scheduled obstacle motions.
+        motions: Scheduled obstacle motions besides the scenario's ``[[simulated_motion]]``
+            (see :func:`world_motions`).
         cache_dir: Abstraction-table cache (None: the default cache).
         gains: Velocity-PID gains of the low level; None: the shipped ones (those the
             scenario's deviation budget was measured with).
@@ -98,8 +99,19 @@ def default_start(scenario: Scenario) -> tuple[float, float, float]:
 
 
 def scenario_hash(scenario: Scenario) -> str:
-    """Return a short, stable hash of a scenario's content."""
-    return hashlib.sha256(repr(scenario).encode()).hexdigest()[:16]
+    """Return a short, stable hash of a scenario's content (:meth:`Scenario.digest`)."""
+    return scenario.digest()
+
+
+def world_motions(scenario: Scenario, spec: SimRunSpec) -> tuple[ObstacleMotion, ...]:
+    """Return every obstacle motion of the run's simulated world.
+
+    The scenario's ``[[simulated_motion]]`` first, then the spec's own motions (fault
+    injection, as ``hil record-suite`` schedules; not held to the speed bound), all
+    scheduled together: motions of one obstacle add up
+    (:func:`~hil.core.motion.displacements_m`).
+    """
+    return scenario.simulation.motions + spec.motions
 
 
 Select = Callable[[FloatArray, FloatArray], int]
@@ -168,6 +180,26 @@ def build_runtime(
                    estimation_position_m=scenario.transient.estimation_position_m,
                    obstacle_max_age_s=(scenario.tracking.max_report_age_s
                                        if scenario.tracks_obstacles else None))
+
+
+def sim_config(spec: SimRunSpec, scenario: Scenario) -> SimConfig:
+    """Return the simulated world of a run: start, seed, faults, load and obstacles.
+
+    The obstacles are the scenario's (their bounding boxes, as the tracker reports them),
+    moved by :func:`world_motions` and reported every ``[sim] obstacle_report_period_s``.
+    """
+    start = spec.start if spec.start is not None else default_start(scenario)
+    return SimConfig(
+        start=start,
+        start_velocity=(0.0, 0.0, 0.0) if spec.start_velocity is None else spec.start_velocity,
+        seed=spec.seed,
+        obstacles=layout_from_scenario(scenario).obstacles,
+        motions=world_motions(scenario, spec),
+        obstacle_report_period_s=scenario.simulation.obstacle_report_period_s,
+        pose=PoseSensorConfig(scheduled_dropouts_s=spec.pose_outages_s),
+        thruster_outages=spec.thruster_outages,
+        load=spec.load if spec.load is not None else EnvironmentalLoad(),
+    )
 
 
 def synthesizer_for(
@@ -240,16 +272,9 @@ def simulate(
     """
     wall_start = time.perf_counter()
     scenario = load_scenario(spec.scenario)
-    start = spec.start if spec.start is not None else default_start(scenario)
-    layout = layout_from_scenario(scenario)
-    start_nu = (0.0, 0.0, 0.0) if spec.start_velocity is None else spec.start_velocity
-    sim = SimWorld(SimConfig(
-        start=start, start_velocity=start_nu, seed=spec.seed, obstacles=layout.obstacles,
-        motions=spec.motions,
-        pose=PoseSensorConfig(scheduled_dropouts_s=spec.pose_outages_s),
-        thruster_outages=spec.thruster_outages,
-        load=spec.load if spec.load is not None else EnvironmentalLoad(),
-    ), max_duration_s=spec.loop.max_duration_s + 10.0)
+    config = sim_config(spec, scenario)
+    start = config.start
+    sim = SimWorld(config, max_duration_s=spec.loop.max_duration_s + 10.0)
     world = World(sim.clock, sim.pose, sim.imu, sim.obstacles, sim.thrusters)
     synthesizer = synthesizer_for(scenario, spec.cache_dir, spec.loop.synthesis_threads)
     recorder: Recorder | None = None
@@ -285,6 +310,7 @@ def summarize(spec: SimRunSpec, scenario: Scenario, sim: SimWorld, stats: RunSta
               wall_s: float) -> RunSummary:
     """Judge a finished simulated run by the world's ground truth."""
     truth = sim.truth()
+    offsets = displacements_m(sim.config.motions, len(sim.config.obstacles), truth[:, 0])
     rows = np.minimum(np.asarray(stats.t_ns, dtype=np.int64) // round(sim.config.dt_s * NS_PER_S),
                       max(len(truth) - 1, 0))
     return summarize_run(
@@ -292,7 +318,8 @@ def summarize(spec: SimRunSpec, scenario: Scenario, sim: SimWorld, stats: RunSta
         backend="sim", stats=stats, trajectory=truth[:, 1 + TR_ETA : 1 + TR_ETA + 3],
         velocity=truth[rows, 1 + TR_NU : 1 + TR_NU + 3].reshape(-1, 3), wall_s=wall_s,
         log=None if spec.out_dir is None else str(spec.out_dir),
-        nominal_s=1.0 / spec.loop.loop_hz)
+        nominal_s=1.0 / spec.loop.loop_hz,
+        obstacle_offsets_m=offsets if sim.config.motions else None)
 
 
 def spec_to_json(spec: SimRunSpec) -> dict[str, Any]:

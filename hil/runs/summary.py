@@ -68,8 +68,9 @@ class RunSummary:
         docking_time_s: Time from start to reaching the target (s), None if never.
         duration_s: Simulated (or wall) time of the run (s).
         wall_s: Wall-clock time the run took (s).
-        min_clearance_m: Smallest distance between the hull and a real obstacle (m);
-            negative means contact.
+        min_clearance_m: Smallest distance between the hull and a real obstacle (m),
+            each obstacle where it is at each step (moved ones included); zero means
+            contact.
         hull_contacts: Number of physics steps with the hull touching an obstacle.
         decisions: Symbolic decisions taken.
         resyntheses: Controllers synthesized and swapped in.
@@ -93,6 +94,10 @@ class RunSummary:
             previous decision's.
         worst_tube_exit_m: Largest of those tube distances (m).
         worst_successor_miss_m: Largest distance to the successor cells (m).
+        moving_obstacles: Obstacles that moved during the run (the simulated world's
+            scheduled motions); 0 when every obstacle stayed put.
+        obstacle_stale_stops: Stops for an obstacle report too old to decide on
+            (``obstacles_stale``).
     """
 
     scenario: str
@@ -122,6 +127,8 @@ class RunSummary:
     value_not_decreasing: int = 0
     worst_tube_exit_m: float = 0.0
     worst_successor_miss_m: float = 0.0
+    moving_obstacles: int = 0
+    obstacle_stale_stops: int = 0
 
     def to_json(self) -> str:
         """Return the summary as one line of JSON (NaN and inf as null)."""
@@ -161,6 +168,9 @@ class RunSummary:
         table.add_row("min hull clearance to real obstacles", f"{self.min_clearance_m:.3f} m", "-")
         table.add_row("hull contacts", str(self.hull_contacts), "0")
         table.add_row("decisions / re-syntheses", f"{self.decisions} / {self.resyntheses}", "-")
+        if self.moving_obstacles or self.obstacle_stale_stops:
+            table.add_row("moving obstacles / stale-report stops",
+                          f"{self.moving_obstacles} / {self.obstacle_stale_stops}", "-")
         table.add_row(
             "synthesis time mean / max",
             f"{self.synthesis_mean_s * 1e3:.1f} / {self.synthesis_max_s * 1e3:.1f} ms",
@@ -206,6 +216,7 @@ def summarize_run(
     wall_s: float,
     log: str | None,
     nominal_s: float = 0.05,
+    obstacle_offsets_m: FloatArray | None = None,
 ) -> RunSummary:
     """Summarize a finished run.
 
@@ -221,8 +232,13 @@ def summarize_run(
         wall_s: Wall-clock duration (s).
         log: Where the run is recorded.
         nominal_s: The loop's nominal period (s).
+        obstacle_offsets_m: Each obstacle's displacement from its scenario position at
+            each pose of `trajectory` (m), shape (n_obstacles, N, 2); None: the obstacles
+            stay put.
     """
-    clearance = hull_clearance_series(scenario, trajectory)
+    clearance = hull_clearance_series(scenario, trajectory, obstacle_offsets_m)
+    moving = 0 if obstacle_offsets_m is None else int(
+        np.count_nonzero(np.any(obstacle_offsets_m != 0.0, axis=(1, 2))))
     synth = stats.synthesis_seconds or [math.nan]
     ticks = np.asarray(stats.t_ns, dtype=np.int64)
     nu_ref = np.asarray(stats.nu_ref, dtype=np.float64).reshape(-1, 3)
@@ -255,6 +271,8 @@ def summarize_run(
         value_not_decreasing=stats.value_not_decreasing,
         worst_tube_exit_m=stats.worst_tube_exit_m,
         worst_successor_miss_m=stats.worst_successor_miss_m,
+        moving_obstacles=moving,
+        obstacle_stale_stops=stats.obstacle_stale_stops,
     )
 
 

@@ -7,7 +7,9 @@ heading cells dividing the circle, plausible units, shapes told apart by their
 keys, a ``[transient]`` budget whose bins cover a period held late (missing: the paper's
 zero budget), obstacle speed bounds (``[obstacle_motion]``, per obstacle
 ``max_speed_mps``; missing: fixed obstacles), and sets that fit together
-(:func:`~hil.scenarios.scenario.check_sets`).
+(:func:`~hil.scenarios.scenario.check_sets`). What the simulated obstacles do,
+``[[simulated_motion]]`` and ``[sim]``, is checked against the obstacles it names and
+their speed bounds (:func:`_simulation`).
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from hil.core.config import ConfigError, check_keys, from_table, number, numbers, table
+from hil.core.motion import ObstacleMotion
 from hil.core.shapes import Polygon, Rect, Shape
 from hil.core.transient import (
     LATE_S,
@@ -33,6 +36,7 @@ from hil.scenarios.scenario import (
     Obstacle,
     ObstacleTracking,
     Scenario,
+    SimulatedWorld,
     Target,
     check_geometry,
     check_sets,
@@ -56,6 +60,8 @@ _TOP_KEYS = {
     "obstacle_motion",
     "obstacles",
     "target",
+    "simulated_motion",
+    "sim",
 }
 
 
@@ -188,6 +194,82 @@ def _obstacle_motion(data: dict[str, Any]) -> tuple[float, ObstacleTracking]:
     lag = _at_least_zero(raw, "position_tolerance_m", where,
                          ObstacleTracking().position_tolerance_m)
     return speed, ObstacleTracking(max_report_age_s=age, position_tolerance_m=lag)
+
+
+_MOTION_KEYS = {"obstacle", "velocity_mps", "start_s", "stop_s"}
+_SPEED_TOLERANCE_MPS = 1e-12  # a speed written as the bound itself passes despite rounding
+
+
+def _simulation(data: dict[str, Any], obstacles: list[Obstacle]) -> SimulatedWorld:
+    """Read ``[[simulated_motion]]`` and ``[sim]``: what the simulated obstacles do.
+
+    Each motion names an ``[[obstacles]]`` entry (a name two entries share is ambiguous),
+    moves it at ``velocity_mps`` = (vx, vy) (m/s, arena frame) from ``start_s`` (default
+    0) to ``stop_s`` (s of run time, 0 <= start < stop), no faster than that obstacle's
+    ``max_speed_mps`` (the bound its synthesis budget assumes). Motions of one obstacle
+    must not overlap in time (back and forth is one entry after the other): their speeds
+    would add up past the bound each respects. ``[sim] obstacle_report_period_s`` (> 0,
+    default 1 s) is how often the simulated tracker reports every obstacle.
+    """
+    sim = table(data, "sim", required=False)
+    _keys(sim, {"obstacle_report_period_s"}, "sim.")
+    default_period = SimulatedWorld().obstacle_report_period_s
+    period = number(sim, "obstacle_report_period_s", "sim.", default_period)
+    if not period > 0.0:
+        raise ScenarioError(f"key sim.'obstacle_report_period_s' must be > 0, got {period!r}")
+    raw_motions = data.get("simulated_motion", [])
+    if not isinstance(raw_motions, list):
+        raise ScenarioError(
+            f"key 'simulated_motion' must be an array of tables ([[simulated_motion]]), "
+            f"got {raw_motions!r}"
+        )
+    names = [o.name for o in obstacles]
+    motions: list[ObstacleMotion] = []
+    for n, raw in enumerate(raw_motions):
+        where = f"simulated_motion[{n}]."
+        if not isinstance(raw, dict):
+            raise ScenarioError(f"key {where[:-1]!r} must be a table, got {raw!r}")
+        _keys(raw, _MOTION_KEYS, where)
+        if "obstacle" not in raw:
+            raise ScenarioError(f"missing key {where}'obstacle' (an [[obstacles]] name)")
+        name = raw["obstacle"]
+        if not isinstance(name, str) or name not in names:
+            raise ScenarioError(
+                f"key {where}'obstacle' = {name!r} names no [[obstacles]] entry "
+                f"(names: {', '.join(repr(m) for m in names) or 'none'})"
+            )
+        if names.count(name) > 1:
+            raise ScenarioError(
+                f"key {where}'obstacle' = {name!r} is ambiguous: {names.count(name)} "
+                "[[obstacles]] entries have that name"
+            )
+        index = names.index(name)
+        vx, vy = numbers(raw, "velocity_mps", where, 2)
+        start = _at_least_zero(raw, "start_s", where, 0.0)
+        stop = number(raw, "stop_s", where)
+        if not stop > start:
+            raise ScenarioError(
+                f"key {where}'stop_s' = {stop!r} must be after {where}'start_s' = {start!r}"
+            )
+        speed = math.hypot(vx, vy)
+        bound = obstacles[index].max_speed_mps
+        if speed > bound + _SPEED_TOLERANCE_MPS:
+            raise ScenarioError(
+                f"key {where}'velocity_mps' = {[vx, vy]!r} moves {name!r} at {speed!r} m/s, "
+                f"faster than its max_speed_mps = {bound!r} (obstacles[{index}] or "
+                "[obstacle_motion]): the synthesis budgets its motion by that bound; raise it"
+            )
+        motion = ObstacleMotion(index, (vx, vy), start, stop)
+        for m, other in enumerate(motions):
+            if other.index == index and other.start_s < stop and start < other.stop_s:
+                raise ScenarioError(
+                    f"key {where}'start_s' = {start!r}, 'stop_s' = {stop!r} overlaps "
+                    f"simulated_motion[{m}] of {name!r} ([{other.start_s!r}, {other.stop_s!r}]"
+                    " s): motions of one obstacle would add up past its max_speed_mps; "
+                    "let one end where the next starts"
+                )
+        motions.append(motion)
+    return SimulatedWorld(tuple(motions), period)
 
 
 _ENVELOPE_AXES = ("surge_mps", "sway_mps", "yaw_rate_radps")
@@ -370,6 +452,7 @@ def _parse(data: dict[str, Any], default_name: str) -> Scenario:
         obstacles=tuple(obstacles),
         target=target,
         tracking=tracking,
+        simulation=_simulation(data, obstacles),
     )
     check_sets(scenario)
     check_geometry(scenario)

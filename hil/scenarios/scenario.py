@@ -12,11 +12,12 @@ from __future__ import annotations
 
 import hashlib
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
+from hil.core.motion import ObstacleMotion
 from hil.core.shapes import Polygon, Rect, Shape, convex_distance_m, shapes_overlap
 from hil.core.transient import LATE_S, TransientBudget, horizon_bins
 from hil.scenarios.errors import ScenarioError
@@ -29,6 +30,7 @@ __all__ = [
     "Obstacle",
     "ObstacleTracking",
     "Scenario",
+    "SimulatedWorld",
     "Target",
     "check_geometry",
     "check_sets",
@@ -137,6 +139,32 @@ class ObstacleTracking:
         return self.max_report_age_s + tau_s + LATE_S
 
 
+@dataclass(frozen=True, slots=True)
+class SimulatedWorld:
+    """What the simulated world does with the obstacles (``[[simulated_motion]]``, ``[sim]``).
+
+    Not part of the problem the controller solves: the stack sees only the obstacle
+    reports, and the speed bounds it is synthesized for are the obstacles'
+    ``max_speed_mps``, which every motion here respects (:mod:`hil.scenarios.parse`
+    refuses a faster one).
+
+    Attributes:
+        motions: Scheduled constant-velocity motions; ``index`` is the position of the
+            obstacle in :attr:`Scenario.obstacles`. Motions of one obstacle do not overlap
+            in time, so its speed never exceeds its bound.
+        obstacle_report_period_s: How often the simulated tracker reports every obstacle
+            when some motion is scheduled (s).
+    """
+
+    motions: tuple[ObstacleMotion, ...] = ()
+    obstacle_report_period_s: float = 1.0
+
+    @property
+    def moves_obstacles(self) -> bool:
+        """Whether some obstacle moves in simulation (a motion with a velocity and a span)."""
+        return any(m.stop_s > m.start_s and any(m.velocity_mps) for m in self.motions)
+
+
 def hull_footprint(hull: Hull, x_m: float, y_m: float, psi_rad: float) -> Polygon:
     """Return the hull rectangle at pose (x, y, psi) in the arena frame."""
     return Polygon.rotated_rect((x_m, y_m), (hull.length_m, hull.beam_m), psi_rad)
@@ -165,6 +193,9 @@ class Scenario:
         obstacles: Real obstacles with their inflation and speed bound.
         target: Real target with its deflation.
         tracking: The report age a decision may rely on for obstacles that move.
+        simulation: What the obstacles do in simulation (``[[simulated_motion]]``,
+            ``[sim]``); left out of ``repr`` so that a scenario without it keeps its
+            digest, and added to :meth:`digest` when set.
     """
 
     name: str
@@ -182,13 +213,19 @@ class Scenario:
     obstacles: tuple[Obstacle, ...]
     target: Target
     tracking: ObstacleTracking = ObstacleTracking()
+    simulation: SimulatedWorld = field(default=SimulatedWorld(), repr=False)
 
     def digest(self) -> str:
         """Return a short hash of everything in the scenario (for logs and caches).
 
-        The transient budget's numbers enter by their own digest (its ``repr``).
+        The transient budget's numbers enter by their own digest (its ``repr``); the
+        simulated world enters only when it is not the default (no motion, reports every
+        second), so scenarios written before it existed keep the hash their logs carry.
         """
-        return hashlib.sha256(repr(self).encode()).hexdigest()[:16]
+        text = repr(self)
+        if self.simulation != SimulatedWorld():
+            text += repr(self.simulation)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
 
     @property
     def arena(self) -> Rect:
