@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -52,6 +52,9 @@ class SynthesisStats:
         target_cells: Cells in the target (all headings).
         peak_bytes: Largest memory the synthesis held at once (bytes, traced).
         threads: Threads the kernel ran on.
+        loaded_seconds: Wall time to read the controller from the solved-controller
+            store (s); 0 when solved here (then `seconds` is this solve's, else the
+            stored solve's).
     """
 
     levels: int
@@ -61,6 +64,12 @@ class SynthesisStats:
     target_cells: int
     peak_bytes: int = 0
     threads: int = 1
+    loaded_seconds: float = 0.0
+
+    @property
+    def loaded(self) -> bool:
+        """Return True when the controller was read from the store, not solved here."""
+        return self.loaded_seconds > 0.0
 
     @property
     def winning_fraction(self) -> float:
@@ -108,15 +117,7 @@ class Controller:
         rest_values.flags.writeable = False
         self._rest_values = rest_values
         winning_rest = int(np.count_nonzero(rest_values >= 0))
-        self.stats = SynthesisStats(
-            stats.levels,
-            stats.seconds,
-            winning_rest,
-            stats.free_cells,
-            stats.target_cells,
-            stats.peak_bytes,
-            stats.threads,
-        )
+        self.stats = replace(stats, winning_cells=winning_rest)
 
     # ------------------------------------------------------------------ properties
 
@@ -149,6 +150,26 @@ class Controller:
         """Return V with reference `previous` in force, shape (nx, ny, npsi); -1 losing."""
         out: I32Array = layer_values(self._W, self._planes, self._pads, previous, self.grid.ny)
         return out
+
+    @property
+    def winning_words(self) -> U64Array:
+        """Return the winning bits, shape (m, nx + 2 px, npsi + 2 ph, nw + 2 pw) (do not write)."""
+        return self._W
+
+    @property
+    def value_planes(self) -> U64Array:
+        """Return the value bit planes, shape (m, nx, npsi, nw, n_planes) (do not write)."""
+        return self._planes
+
+    @property
+    def viable_words(self) -> U64Array:
+        """Return the tube-free bits per class, shape (3, m, nx, npsi, nw) (do not write)."""
+        return self._viable
+
+    @property
+    def pads(self) -> I32Array:
+        """Return (px, ph, pw), the padding of :attr:`winning_words` (cells, headings, words)."""
+        return self._pads
 
     @property
     def obstacles(self) -> BoolArray:
