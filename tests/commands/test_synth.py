@@ -50,11 +50,22 @@ def test_synth_prints_a_report_and_json(tmp_path: Path, capsys: pytest.CaptureFi
     assert 0.0 < summary["peak_memory_mb"] < 600.0
     assert any(line.startswith("winning") for line in out[:-1])
     assert Controller.load(saved).stats.winning_cells == summary["winning_cells"]
-    # Second run: tables come from the cache.
+    assert summary["controller_cached"] is False
+    # Second run: tables and the solved controller come from the cache.
     main(["synth", "coarse", "--json", "--cache-dir", str(tmp_path), "--repeat", "1"])
-    assert (
-        json.loads(capsys.readouterr().out.strip().splitlines()[-1])["abstraction_cached"] is True
-    )
+    again = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert again["abstraction_cached"] is True
+    assert again["controller_cached"] is True
+    assert again["winning_cells"] == summary["winning_cells"]
+    # --no-cache reads and writes neither: both are built, nothing new on disk.
+    before = sorted((p, p.stat().st_mtime_ns) for p in tmp_path.rglob("*"))
+    main(["synth", "coarse", "--json", "--cache-dir", str(tmp_path), "--repeat", "1",
+          "--no-cache"])
+    fresh = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert fresh["abstraction_cached"] is False
+    assert fresh["controller_cached"] is False
+    assert fresh["winning_cells"] == summary["winning_cells"]
+    assert sorted((p, p.stat().st_mtime_ns) for p in tmp_path.rglob("*")) == before
 
 
 def test_synth_refuses_a_target_covered_by_an_inflated_obstacle(
