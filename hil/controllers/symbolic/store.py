@@ -39,7 +39,7 @@ import os
 import struct
 import time
 import uuid
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -295,12 +295,31 @@ def _arrays(solved: SolvedLayout) -> tuple[U64Array, ...]:
     return solved.winning, solved.planes, solved.viable
 
 
+def _chunks(arrays: Sequence[U64Array], size: int) -> Iterator[bytes | memoryview]:
+    """Yield the arrays' bytes back to back in pieces of `size` (the last may be shorter).
+
+    Only a piece that spans two arrays is copied: the paper's 308 MB are never joined.
+    """
+    pending: list[memoryview] = []
+    n = 0
+    for a in arrays:
+        view = np.ascontiguousarray(a, dtype="<u8").data.cast("B")
+        offset = 0
+        while offset < len(view):
+            take = min(size - n, len(view) - offset)
+            pending.append(view[offset : offset + take])
+            n += take
+            offset += take
+            if n == size:
+                yield pending[0] if len(pending) == 1 else b"".join(pending)
+                pending, n = [], 0
+    if pending:
+        yield pending[0] if len(pending) == 1 else b"".join(pending)
+
+
 def _encode(key: str, solved: SolvedLayout) -> bytes:
-    raw = b"".join(
-        np.ascontiguousarray(a, dtype="<u8").data.cast("B") for a in _arrays(solved)
-    )
     cctx = zstandard.ZstdCompressor(level=LEVEL)
-    frames = [cctx.compress(raw[o : o + _CHUNK]) for o in range(0, len(raw), _CHUNK)]
+    frames = [cctx.compress(piece) for piece in _chunks(_arrays(solved), _CHUNK)]
     header = json.dumps({
         "key": key,
         "shapes": [list(a.shape) for a in _arrays(solved)],

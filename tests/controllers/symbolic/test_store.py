@@ -221,7 +221,12 @@ def test_the_least_recently_used_files_go_first(tmp_path: Path) -> None:
     assert not (tmp_path / "off").exists()
 
 
-def test_a_stored_layout_reads_back_bit_for_bit(tmp_path: Path) -> None:
+@pytest.mark.parametrize("chunk", [16 * 2**20, 1000, 24])
+def test_a_stored_layout_reads_back_bit_for_bit(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, chunk: int
+) -> None:
+    # Small frames: frames that end inside an array and frames that span two.
+    monkeypatch.setattr(store_module, "_CHUNK", chunk)
     store = ControllerStore(tmp_path, 10**9)
     written = _layout(7, noise=True)
     store.save("k", written)
