@@ -44,6 +44,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"target: <= 10 s wall (goal 5 s) for the paper run with re-synthesis every 2 s: "
           f"{full[2]:.2f} s; synthesis share {full[3] * full[4] / full[2]:.0%}")
     print("note: the layout is static, so each timed re-synthesis after the first returns the "
-          "controller the solver memoized for it; a new layout costs a full solve "
+          "controller the solver memoized for it (the first may come from the solved-"
+          "controller store on disk); a new layout costs a full solve "
           "(`python -m bench synthesis`)")
     return 0

@@ -57,7 +57,7 @@ def _moved(scenario: Scenario, name: str, dy_m: float) -> Scenario:
 
 def _cells(tables: Tables, problem: SymbolicProblem) -> list[tuple[int, int, int]]:
     """Return a state of each of VALUES (nearest value present) in the layout's rest layer."""
-    values = Synthesizer(tables, memo=False).solve_problem(problem).values
+    values = Synthesizer(tables, memo=False, use_cache=False).solve_problem(problem).values
     out = []
     for wanted in VALUES:
         present = np.unique(values[values > 0])
@@ -102,10 +102,11 @@ def run(quick: bool = False) -> list[Timing]:
     baselines: list[float] = []
     for label, name, dy in moves:
         moved = SymbolicProblem.from_scenario(_moved(scenario, name, dy))
-        baseline = Synthesizer(tables, threads=1, memo=False).solve_problem(moved).stats.seconds
+        plain = Synthesizer(tables, threads=1, memo=False, use_cache=False)
+        baseline = plain.solve_problem(moved).stats.seconds
         baselines.append(baseline)
         for threads in thread_counts:
-            synthesizer = Synthesizer(tables, threads=threads, memo=False)
+            synthesizer = Synthesizer(tables, threads=threads, memo=False, use_cache=False)
             for cell in cells:
                 covered, full = _staged(synthesizer, moved, Watch(cell, rest))
                 timing = Timing(label, VALUES[cells.index(cell)], threads, covered, full)

@@ -52,7 +52,7 @@ def _solve_times(
     tables: Tables, layouts: list[SymbolicProblem], threads: int
 ) -> tuple[float, float, list[Controller]]:
     """Return the median wall time, the median CPU time (all threads) and the controllers."""
-    synthesizer = Synthesizer(tables, threads=threads, memo=False)
+    synthesizer = Synthesizer(tables, threads=threads, memo=False, use_cache=False)
     synthesizer.solve_problem(layouts[0])  # warm-up: numba load or compile
     controllers = []
     cpu = []
@@ -122,7 +122,7 @@ def main(argv: list[str] | None = None) -> int:
         t2, c2, controllers = _solve_times(tables, layouts, threads=2)
         t1, c1, _ = _solve_times(tables, layouts, threads=1)
         paper = controllers[0]
-        traced = Synthesizer(tables, trace_memory=True).solve_problem(problem)
+        traced = Synthesizer(tables, trace_memory=True, use_cache=False).solve_problem(problem)
         path = cache / "paper.npz"
         paper.save(path)
         size_mb = path.stat().st_size / 2**20

@@ -2,9 +2,11 @@
 
 Prints the grid, the abstraction and synthesis times, the fixed-point iterations, the
 winning fraction of the free cells and the memory; with `--json` the same figures
-follow as one JSON object on the last line. With `--start X,Y,PSI_DEG` also the time
-until a controller covers that state at rest (the solve's early stop, `start_seconds`)
-beside the full solve's.
+follow as one JSON object on the last line. A layout solved before is read from the
+solved-controller store (the report says so); `--no-cache` bypasses every cache (tables,
+stored controllers, the process's memo), so that `--repeat` times solves. With
+`--start X,Y,PSI_DEG` also the time until a controller covers that state at rest (the
+solve's early stop, `start_seconds`) beside the full solve's, always solved.
 """
 
 from __future__ import annotations
@@ -38,9 +40,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--threads", type=int, default=1, help="kernel threads (default 1; 0 for all cores)"
     )
-    parser.add_argument("--cache-dir", type=Path, default=None, help="table cache folder")
     parser.add_argument(
-        "--no-cache", action="store_true", help="neither read nor write the table cache"
+        "--cache-dir", type=Path, default=None, help="table and solved-controller cache folder"
+    )
+    parser.add_argument(
+        "--no-cache",
+        action="store_true",
+        help="neither read nor write any cache (tables, solved controllers): every run solves",
     )
     parser.add_argument(
         "--repeat", type=int, default=3, help="synthesis runs; the median is reported"
@@ -69,15 +75,20 @@ def run(args: argparse.Namespace) -> int:
         tables, cached = problem.tables(cache_dir=args.cache_dir, use_cache=not args.no_cache)
         abstraction_s = time.perf_counter() - start
         threads = args.threads if args.threads > 0 else None
-        synthesizer = Synthesizer(tables, threads=threads, trace_memory=True)
+        synthesizer = Synthesizer(
+            tables, threads=threads, trace_memory=True, memo=not args.no_cache,
+            use_cache=not args.no_cache, cache_dir=args.cache_dir,
+        )  # fmt: skip
         start = time.perf_counter()
         first = synthesizer.solve_problem(problem)  # includes numba's load or compile
         first_s = time.perf_counter() - start
         runs = [first] + [
             synthesizer.solve_problem(problem) for _ in range(max(args.repeat, 1) - 1)
         ]
+        synthesizer.wait_stored()
         start_figures = None if args.start is None else _start_figures(
-            Synthesizer(tables, threads=threads, memo=False), problem, args.start)
+            Synthesizer(tables, threads=threads, memo=False, use_cache=False), problem,
+            args.start)
     except (ScenarioError, SymbolicError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
@@ -105,6 +116,7 @@ def run(args: argparse.Namespace) -> int:
         "abstraction_seconds": abstraction_s,
         "abstraction_cached": cached,
         "first_synthesis_seconds": first_s,
+        "controller_cached": first.stats.loaded,
         "synthesis_seconds": seconds,
         "synthesis_runs": len(runs),
         "iterations": stats.levels,
@@ -129,16 +141,24 @@ def run(args: argparse.Namespace) -> int:
         f"{summary['inputs']} inputs, tau {problem.tau_s} s"
     )
     print(f"abstraction  {abstraction_s:.3f} s ({'from cache' if cached else 'built'})")
-    print(
-        f"synthesis    {seconds:.3f} s median of {len(runs) - 1 or 1} (first run {first_s:.3f} s), "
-        f"{stats.levels} iterations, {stats.threads} thread(s)"
-    )
+    if first.stats.loaded:
+        print(
+            f"synthesis    {seconds:.3f} s when stored, read from the controller cache in "
+            f"{first_s:.3f} s (--no-cache to solve), {stats.levels} iterations"
+        )
+    else:
+        print(
+            f"synthesis    {seconds:.3f} s median of {len(runs) - 1 or 1} (first run "
+            f"{first_s:.3f} s), {stats.levels} iterations, {stats.threads} thread(s)"
+        )
     print(
         f"winning      {stats.winning_cells} of {stats.free_cells} free cells "
         f"({100 * stats.winning_fraction:.2f} %)"
     )
+    solved_here = "" if not first.stats.loaded else " (not solved here)"
     print(
-        f"memory       {peak_mb:.1f} MB peak during synthesis, tables {summary['tables_mb']:.1f} MB"
+        f"memory       {peak_mb:.1f} MB peak during synthesis{solved_here}, "
+        f"tables {summary['tables_mb']:.1f} MB"
     )
     if start_figures is not None:
         print(_start_text(start_figures))

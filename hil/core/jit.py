@@ -95,6 +95,15 @@ def cache_lock() -> Iterator[None]:
             fcntl.flock(handle, fcntl.LOCK_UN)
 
 
+def _marker(key: str) -> Path:
+    return CACHE_DIR / f".warmed-{hashlib.sha256(key.encode()).hexdigest()[:16]}"
+
+
+def warmed(key: str) -> bool:
+    """Return True once a :func:`warm_once` of `key` has finished against this cache."""
+    return _marker(key).exists()
+
+
 def warm_once(key: str, warm: Callable[[], None]) -> None:
     """Run `warm` (code that compiles kernels); the first process to do so holds the lock.
 
@@ -106,7 +115,7 @@ def warm_once(key: str, warm: Callable[[], None]) -> None:
         key: Names what `warm` compiles (e.g. the function and its arguments).
         warm: The warm-up.
     """
-    marker = CACHE_DIR / f".warmed-{hashlib.sha256(key.encode()).hexdigest()[:16]}"
+    marker = _marker(key)
     if marker.exists():
         warm()
         return

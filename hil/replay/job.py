@@ -11,17 +11,20 @@ from __future__ import annotations
 
 import tempfile
 from dataclasses import dataclass, replace
-from functools import partial
 from pathlib import Path
 
+from hil.core.jit import warmed
 from hil.replay.controllers import ScenarioCache
 from hil.replay.options import ReplayOptions
 from hil.replay.regression import LogReport
 from hil.replay.replayer import replay_log
 from hil.runs.campaign import warm_sim
+from hil.runs.executor import warm_key
 from hil.runs.fanout import Job
 
-__all__ = ["REPLAY_JOB", "ReplayTask", "process_caches", "replay_task", "task_for"]
+__all__ = [
+    "REPLAY_JOB", "ReplayTask", "process_caches", "replay_task", "task_for", "warm_replay",
+]  # fmt: skip
 
 _CACHES: dict[Path | None, ScenarioCache] = {}
 
@@ -93,7 +96,20 @@ def _no_encode(report: LogReport) -> object:
     return {"path": report.path}
 
 
+def warm_replay() -> None:
+    """Prepare a replay worker: nothing once numba's cache holds this source tree's kernels.
+
+    A replay needs no warm-up run for its controllers (they come from the
+    solved-controller store, or are solved on first use) nor for numba's kernels
+    once they are cached: each loads on its first call. Only while that cache is cold
+    (the first replay after an edit of the package) does the first worker compile
+    them in one short run of the coarse scenario, the others waiting on the cache
+    lock (:func:`hil.core.jit.warm_once`), so that workers started together compile once.
+    """
+    if not warmed(warm_key(warm_replay)):
+        warm_sim(("coarse",))
+
+
 REPLAY_JOB: Job[ReplayTask, LogReport] = Job(
-    "replay", replay_task, _encode_task, _no_encode, _no_decode,
-    partial(warm_sim, ("coarse",)))
-"""Replay logs; each worker first warms numba on a short run of the coarse scenario."""
+    "replay", replay_task, _encode_task, _no_encode, _no_decode, warm_replay)
+"""Replay logs; each worker first warms numba's cache if it is cold (:func:`warm_replay`)."""

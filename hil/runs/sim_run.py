@@ -207,13 +207,15 @@ def synthesizer_for(
 ) -> Synthesizer:
     """Return a synthesizer holding the scenario grid's tables (from the disk cache).
 
+    Its solves read and write the solved-controller store under the same folder.
+
     Args:
         scenario: Whose grid, inputs and budget.
         cache_dir: Table cache folder (default: the package's).
         threads: Kernel threads per solve (see :class:`Synthesizer`).
     """
     tables, _ = SymbolicProblem.from_scenario(scenario).tables(cache_dir=cache_dir)
-    return Synthesizer(tables, threads=threads)
+    return Synthesizer(tables, threads=threads, cache_dir=cache_dir)
 
 
 LiveView = Callable[[Scenario, RunLog], RunLog]

@@ -51,13 +51,16 @@ def test_synth_prints_a_report_and_json(tmp_path: Path, capsys: pytest.CaptureFi
     assert 0.0 < summary["peak_memory_mb"] < 600.0
     assert any(line.startswith("winning") for line in out[:-1])
     assert Controller.load(saved).stats.winning_cells == summary["winning_cells"]
-    # Second run: tables come from the cache; the start is covered before the full solve
-    # ends, at the level of its value, which is the full controller's.
+    assert summary["controller_cached"] is False
+    # Second run: tables and the solved controller come from the cache; a start is covered
+    # before the full solve ends, at the level of its value, which is the full controller's.
     start = (-0.5, -1.2, 180.0)
     main(["synth", "coarse", "--json", "--cache-dir", str(tmp_path), "--repeat", "1",
           f"--start={start[0]},{start[1]},{start[2]}"])
     again = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert again["abstraction_cached"] is True
+    assert again["controller_cached"] is True
+    assert again["winning_cells"] == summary["winning_cells"]
     controller = Controller.load(saved)
     cell = controller.grid.cell_of((start[0], start[1], math.radians(start[2])))
     assert cell is not None
@@ -65,6 +68,15 @@ def test_synth_prints_a_report_and_json(tmp_path: Path, capsys: pytest.CaptureFi
     assert again["start_value"] == controller.cell_value(cell) > 0
     assert again["start_levels"] == again["start_value"] < summary["iterations"]
     assert 0.0 < again["start_seconds"] < again["start_full_seconds"]
+    # --no-cache reads and writes neither: both are built, nothing new on disk.
+    before = sorted((p, p.stat().st_mtime_ns) for p in tmp_path.rglob("*"))
+    main(["synth", "coarse", "--json", "--cache-dir", str(tmp_path), "--repeat", "1",
+          "--no-cache"])
+    fresh = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert fresh["abstraction_cached"] is False
+    assert fresh["controller_cached"] is False
+    assert fresh["winning_cells"] == summary["winning_cells"]
+    assert sorted((p, p.stat().st_mtime_ns) for p in tmp_path.rglob("*")) == before
 
 
 def test_synth_refuses_a_start_outside_the_grid(capsys: pytest.CaptureFixture[str]) -> None:

@@ -55,6 +55,9 @@ class SynthesisStats:
         complete: False for an early controller: the solve stopped after `levels`
             levels (the state it was asked for joined), so it holds every state of
             value <= `levels` with its final value and safe inputs, and no other.
+        loaded_seconds: Wall time to read the controller from the solved-controller
+            store (s); 0 when solved here (then `seconds` is this solve's, else the
+            stored solve's).
     """
 
     levels: int
@@ -65,6 +68,12 @@ class SynthesisStats:
     peak_bytes: int = 0
     threads: int = 1
     complete: bool = True
+    loaded_seconds: float = 0.0
+
+    @property
+    def loaded(self) -> bool:
+        """Return True when the controller was read from the store, not solved here."""
+        return self.loaded_seconds > 0.0
 
     @property
     def winning_fraction(self) -> float:
@@ -145,6 +154,26 @@ class Controller:
         """Return V with reference `previous` in force, shape (nx, ny, npsi); -1 losing."""
         out: I32Array = layer_values(self._W, self._planes, self._pads, previous, self.grid.ny)
         return out
+
+    @property
+    def winning_words(self) -> U64Array:
+        """Return the winning bits, shape (m, nx + 2 px, npsi + 2 ph, nw + 2 pw) (do not write)."""
+        return self._W
+
+    @property
+    def value_planes(self) -> U64Array:
+        """Return the value bit planes, shape (m, nx, npsi, nw, n_planes) (do not write)."""
+        return self._planes
+
+    @property
+    def viable_words(self) -> U64Array:
+        """Return the tube-free bits per class, shape (3, m, nx, npsi, nw) (do not write)."""
+        return self._viable
+
+    @property
+    def pads(self) -> I32Array:
+        """Return (px, ph, pw), the padding of :attr:`winning_words` (cells, headings, words)."""
+        return self._pads
 
     @property
     def obstacles(self) -> BoolArray:

@@ -7,7 +7,6 @@ can re-synthesize in a background thread while its loop runs (on a 2-core machin
 
 from __future__ import annotations
 
-import hashlib
 import threading
 import time
 import tracemalloc
@@ -26,6 +25,7 @@ from hil.controllers.symbolic.errors import GridError, NoWinningSetError
 from hil.controllers.symbolic.kernels import pack_rows, state_value
 from hil.controllers.symbolic.lattice import InputLattice
 from hil.controllers.symbolic.problem import SymbolicProblem
+from hil.controllers.symbolic.store import ControllerStore, SolvedLayout, solve_key
 from hil.controllers.symbolic.sweep import (
     advance_level_parallel,
     advance_level_serial,
@@ -125,7 +125,12 @@ class Synthesizer:
         trace_memory: Measure the peak memory of each solve with tracemalloc (slower).
         memo: Reuse a controller this process already solved for the same tables and
             masks (the last :data:`MEMO_SIZE`): simulated runs and campaigns solve the
-            same layout over and over. Benchmarks turn it off.
+            same layout over and over.
+        use_cache: Read a controller solved before (by any process) from the store on
+            disk, and write each solve there (:mod:`~hil.controllers.symbolic.store`).
+            Benchmarks turn it and `memo` off, so that every call solves.
+        cache_dir: The table cache folder whose ``controllers/`` is the store
+            (:func:`~hil.controllers.symbolic.abstraction.default_cache_dir` if None).
     """
 
     def __init__(
@@ -134,6 +139,8 @@ class Synthesizer:
         threads: int | None = 1,
         trace_memory: bool = False,
         memo: bool = True,
+        use_cache: bool = True,
+        cache_dir: Path | None = None,
     ) -> None:
         if threads is not None and threads < 1:
             raise GridError(f"threads must be >= 1, got {threads!r}")
@@ -142,6 +149,8 @@ class Synthesizer:
         self._threads = threads
         self._trace = trace_memory
         self._memo = memo and not trace_memory
+        self._store = ControllerStore.default(cache_dir) if use_cache else None
+        self._writes: list[threading.Thread] = []
         succ = tables.succ
         self._reach = np.ascontiguousarray(
             np.stack([succ[..., 0].min(axis=0), succ[..., 1].max(axis=0)], axis=-1).astype(np.int32)
@@ -240,33 +249,32 @@ class Synthesizer:
         at_rest = problem.heading_free()
         target = problem.target_cells(at_rest)
         obstacles = problem.inflated_obstacle_mask()
+        store = self._store if self._store is not None and self._store.enabled else None
         key = ""
-        cached = None
+        if self._memo or store is not None:
+            key = solve_key(self._tables.key, (free, target, obstacles))
+        controller = None
         if self._memo:
-            digest = hashlib.sha256(self._tables.key.encode())
-            for mask in (free, target, obstacles):
-                digest.update(np.packbits(mask, axis=None).tobytes())
-            key = digest.hexdigest()
             with _MEMO_LOCK:
-                cached = _MEMO.get(key)
-                if cached is not None:
+                controller = _MEMO.get(key)
+                if controller is not None:
                     _MEMO.move_to_end(key)
-        if cached is not None:
-            controller = cached
-        else:
+        if controller is None and store is not None:
+            controller = self._load(store, key, target, obstacles, int(at_rest.sum()))
+            if controller is not None:
+                self._remember(key, controller)
+        if controller is None:
             if self._trace:
                 controller = self._solve_traced(free, target, obstacles, int(at_rest.sum()), start)
             else:
-                for controller in self.stages(
-                    free, target, obstacles, int(at_rest.sum()), start, watch
-                ):
-                    if not controller.stats.complete:
-                        yield controller
-            if self._memo:
-                with _MEMO_LOCK:
-                    _MEMO[key] = controller
-                    while len(_MEMO) > MEMO_SIZE:
-                        _MEMO.popitem(last=False)
+                for stage in self.stages(free, target, obstacles, int(at_rest.sum()), start, watch):
+                    if not stage.stats.complete:
+                        yield stage  # an early controller is neither remembered nor stored
+                    controller = stage
+            assert controller is not None
+            self._remember(key, controller)
+            if store is not None:
+                self._write(store, key, controller)
         if require_winning and not controller.has_winning_start:
             s = controller.stats
             raise NoWinningSetError(
@@ -274,6 +282,95 @@ class Synthesizer:
                 f"cells, {s.free_cells!r} free cells, {int(obstacles.sum())!r} obstacle cells"
             )
         yield controller
+
+    def wait_stored(self) -> None:
+        """Block until every controller this synthesizer solved is written to the store."""
+        while self._writes:
+            self._writes.pop().join()
+
+    def _remember(self, key: str, controller: Controller) -> None:
+        if self._memo:
+            with _MEMO_LOCK:
+                _MEMO[key] = controller
+                while len(_MEMO) > MEMO_SIZE:
+                    _MEMO.popitem(last=False)
+
+    def _load(
+        self,
+        store: ControllerStore,
+        key: str,
+        target: BoolArray,
+        obstacles: BoolArray,
+        free_cells: int,
+    ) -> Controller | None:
+        """Return the controller stored under `key`, or None."""
+        nx, ny, npsi = self._tables.grid.shape
+        m = self._tables.n_inputs
+        start = time.perf_counter()
+        solved = store.load(key, (m, nx, npsi, (ny + 63) // 64), N_PLANES, N_CLASSES)
+        if solved is None:
+            return None
+        px, ph, pw = (int(p) for p in self._pads)
+        nw = solved.winning.shape[3]
+        W = np.zeros((m, nx + 2 * px, npsi + 2 * ph, nw + 2 * pw), dtype=np.uint64)
+        # Heading padding rows repeat the rows they wrap to (the layout the kernels keep).
+        for kp in range(npsi + 2 * ph):
+            W[:, px : px + nx, kp, pw : pw + nw] = solved.winning[:, :, (kp - ph) % npsi, :]
+        return Controller(
+            self._tables, self._lattice, W, solved.planes, solved.viable, self._pads,
+            obstacles.astype(bool), SynthesisStats(
+                levels=solved.levels, seconds=solved.solve_seconds, winning_cells=0,
+                free_cells=free_cells, target_cells=int(target.sum()),
+                threads=solved.threads, loaded_seconds=time.perf_counter() - start,
+            ),
+        )  # fmt: skip
+
+    def _write(self, store: ControllerStore, key: str, controller: Controller) -> None:
+        """Write `controller` to the store from a thread: compressing takes about a second.
+
+        Not a daemon thread: a process that ends right after a solve still finishes
+        the file (an interrupted write leaves only a temporary file).
+        """
+        W, pads = controller.winning_words, controller.pads
+        px, ph, pw = (int(p) for p in pads)
+        nx, ny, npsi = self._tables.grid.shape
+        s = controller.stats
+        solved = SolvedLayout(
+            W[:, px : px + nx, ph : ph + npsi, pw : pw + (ny + 63) // 64],
+            controller.value_planes, controller.viable_words, s.levels, s.seconds, s.threads,
+        )  # fmt: skip
+        thread = threading.Thread(
+            target=store.save, args=(key, solved), name="hil-controller-store"
+        )
+        thread.start()
+        self._writes = [t for t in self._writes if t.is_alive()] + [thread]
+
+    def _viable(self, free: BoolArray) -> U64Array:
+        """Return the viable words (3, m, nx, npsi, nw) of the free masks (n_ranges, nx, ny)."""
+        t = self._tables
+        nx, ny, npsi = t.grid.shape
+        m = t.n_inputs
+        n_ranges = self._psi_lo.shape[0]
+        px, _, pw = (int(p) for p in self._pads)
+        nw = (ny + 63) // 64
+        free_words = pack_rows(np.ascontiguousarray(free.reshape(-1, ny))).reshape(n_ranges, nx, nw)
+        viable = np.zeros((N_CLASSES, m, nx, npsi, nw), dtype=np.uint64)
+        f_pad = np.zeros((nx + 2 * px, nw + 2 * pw), dtype=np.uint64)
+        f_eroded = np.zeros((self._f_layers, nx + 2 * px, nw + 2 * pw), dtype=np.uint64)
+        _all_viable(
+            free_words,
+            self._order,
+            self._starts,
+            t.tube_x0,
+            t.tube_n,
+            t.tube_y,
+            px,
+            pw,
+            f_pad,
+            f_eroded,
+            viable,
+        )
+        return viable
 
     def _solve_traced(
         self,
@@ -349,23 +446,7 @@ class Synthesizer:
         t0 = time.perf_counter() if start is None else start
         px, ph, pw = (int(p) for p in self._pads)
         nw = (ny + 63) // 64
-        free_words = pack_rows(np.ascontiguousarray(free.reshape(-1, ny))).reshape(n_ranges, nx, nw)
-        viable = np.zeros((N_CLASSES, m, nx, npsi, nw), dtype=np.uint64)
-        f_pad = np.zeros((nx + 2 * px, nw + 2 * pw), dtype=np.uint64)
-        f_eroded = np.zeros((self._f_layers, nx + 2 * px, nw + 2 * pw), dtype=np.uint64)
-        _all_viable(
-            free_words,
-            self._order,
-            self._starts,
-            t.tube_x0,
-            t.tube_n,
-            t.tube_y,
-            px,
-            pw,
-            f_pad,
-            f_eroded,
-            viable,
-        )
+        viable = self._viable(free)
         goal_cells = np.ascontiguousarray(np.transpose(target, (0, 2, 1)).reshape(-1, ny))
         goal = pack_rows(goal_cells).reshape(nx, npsi, nw)
         W = np.zeros((m, nx + 2 * px, npsi + 2 * ph, nw + 2 * pw), dtype=np.uint64)

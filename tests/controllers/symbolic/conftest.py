@@ -24,7 +24,7 @@ def tables(problem: SymbolicProblem) -> Tables:
 
 @pytest.fixture(scope="session")
 def controller(problem: SymbolicProblem, tables: Tables) -> Controller:
-    out = Synthesizer(tables, memo=False).solve_problem(problem)
+    out = Synthesizer(tables, memo=False, use_cache=False).solve_problem(problem)
     assert out.has_winning_start
     return out
 
@@ -41,6 +41,6 @@ def zero_tables(zero_problem: SymbolicProblem) -> Tables:
 
 @pytest.fixture(scope="session")
 def zero_controller(zero_problem: SymbolicProblem, zero_tables: Tables) -> Controller:
-    out = Synthesizer(zero_tables, memo=False).solve_problem(zero_problem)
+    out = Synthesizer(zero_tables, memo=False, use_cache=False).solve_problem(zero_problem)
     assert out.has_winning_start
     return out

@@ -77,7 +77,7 @@ def test_kernel_equals_the_dense_solver(
     assert levels == controller.stats.levels
     assert controller.stats.winning_cells > controller.stats.target_cells
     # memo=False: the memo would hand back the serial controller for the same masks.
-    threaded = Synthesizer(t, threads=2, memo=False).solve_problem(problem)
+    threaded = Synthesizer(t, threads=2, memo=False, use_cache=False).solve_problem(problem)
     assert threaded is not controller
     assert threaded.stats.threads == 2
     for p in range(t.n_inputs):

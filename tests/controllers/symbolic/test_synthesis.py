@@ -123,8 +123,8 @@ def _check_dense(problem: SymbolicProblem, tables: Tables) -> Controller:
     """Assert serial and threaded solves equal the dense solver; return the serial one."""
     free = tiny.flat_free(problem, tables)
     dense, levels = dense_fixed_point(tables, free, problem.target_cells())
-    serial = Synthesizer(tables, memo=False).solve_problem(problem)
-    threaded = Synthesizer(tables, threads=2, memo=False).solve_problem(problem)
+    serial = Synthesizer(tables, memo=False, use_cache=False).solve_problem(problem)
+    threaded = Synthesizer(tables, threads=2, memo=False, use_cache=False).solve_problem(problem)
     assert (serial.stats.threads, threaded.stats.threads) == (1, 2)
     assert serial.stats.levels == threaded.stats.levels == levels
     for p in range(tables.n_inputs):
@@ -160,7 +160,8 @@ def test_a_wall_across_the_arena_makes_the_far_side_losing() -> None:
     assert controller.value((1.0, 0.0, 0.0)) == np.inf
     assert controller.safe_inputs((1.0, 0.0, 0.0)).shape == (0, 3)
     # Without the wall the far side wins somewhere.
-    free = Synthesizer(tables, memo=False).solve_problem(problem.with_obstacles(()))
+    empty = problem.with_obstacles(())
+    free = Synthesizer(tables, memo=False, use_cache=False).solve_problem(empty)
     assert np.any(free.values[far] > 0)
 
 
@@ -225,7 +226,7 @@ def test_stats_count_the_sets(problem: SymbolicProblem, controller: Controller) 
 def test_more_obstacles_only_shrink_the_winning_sets(
     zero_problem: SymbolicProblem, zero_tables: Tables, zero_controller: Controller
 ) -> None:
-    synthesizer = Synthesizer(zero_tables, memo=False)
+    synthesizer = Synthesizer(zero_tables, memo=False, use_cache=False)
     empty = synthesizer.solve_problem(zero_problem.with_obstacles(()))
     more = synthesizer.solve_problem(
         zero_problem.with_obstacles((*zero_problem.obstacles, Rect(-0.6, -0.4, 0.4, 1.0)))
@@ -244,7 +245,7 @@ def test_more_obstacles_only_shrink_the_winning_sets(
 def test_no_winning_cell_is_reported(problem: SymbolicProblem, tables: Tables) -> None:
     cover = Rect(-1.5, -0.5, -1.0, 1.0)  # over the whole target
     covered = problem.with_obstacles((cover,))
-    controller = Synthesizer(tables, memo=False).solve_problem(covered)
+    controller = Synthesizer(tables, memo=False, use_cache=False).solve_problem(covered)
     assert not controller.has_winning_start
     assert controller.stats.winning_cells == 0
     assert controller.stats.target_cells == 0
@@ -262,7 +263,7 @@ def test_resynthesis_reuses_tables_and_runs_in_a_thread(
     problem: SymbolicProblem, tables: Tables, controller: Controller
 ) -> None:
     moved = problem.with_obstacles((problem.obstacles[0].translate(-0.3, 0.0),))
-    synthesizer = Synthesizer(tables, memo=False)
+    synthesizer = Synthesizer(tables, memo=False, use_cache=False)
     results: list[Controller] = []
     worker = threading.Thread(target=lambda: results.append(synthesizer.solve_problem(moved)))
     worker.start()
@@ -292,7 +293,7 @@ def test_the_memo_returns_the_same_controller_for_the_same_masks(
     other = Synthesizer(tables).solve_problem(moved)
     assert other is not first
     assert not np.array_equal(other.values, first.values)
-    fresh = Synthesizer(tables, memo=False).solve_problem(problem)
+    fresh = Synthesizer(tables, memo=False, use_cache=False).solve_problem(problem)
     assert fresh is not first
     np.testing.assert_array_equal(fresh.values, first.values)
     # Other tables (another budget) with the same masks are not confused with these.
