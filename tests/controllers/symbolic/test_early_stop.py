@@ -37,7 +37,8 @@ def test_early_controller_holds_the_full_solve_below_the_vessels_value(
     m = tables.n_inputs
     for cell in _watched_cells(controller, reference):
         value = controller.cell_value(cell, reference)
-        stages = list(Synthesizer(tables, memo=False, use_cache=False).solve_stages(problem, Watch(cell, reference)))
+        solver = Synthesizer(tables, memo=False, use_cache=False)
+        stages = list(solver.solve_stages(problem, Watch(cell, reference)))
         assert [c.stats.complete for c in stages] == [False, True]
         early, full = stages
         assert early.stats.levels == value  # stopped right after the vessel's level
@@ -69,7 +70,8 @@ def test_a_state_in_the_target_is_covered_at_once_and_a_losing_one_never(
     rest = controller.rest_index
     for wanted, expected in ((0, [False, True]), (-1, [True])):
         i, j, k = (int(x) for x in np.argwhere(values == wanted)[0])
-        stages = list(Synthesizer(tables, memo=False, use_cache=False).solve_stages(problem, Watch((i, j, k), rest)))
+        solver = Synthesizer(tables, memo=False, use_cache=False)
+        stages = list(solver.solve_stages(problem, Watch((i, j, k), rest)))
         assert [c.stats.complete for c in stages] == expected
         np.testing.assert_array_equal(stages[-1].values, values)
         if wanted == 0:  # the goal alone, before any level ran
