@@ -23,6 +23,8 @@ from hil.controllers.symbolic.controller import Controller, SynthesisStats
 from hil.controllers.symbolic.errors import GridError, NoWinningSetError
 from hil.controllers.symbolic.kernels import pack_rows
 from hil.controllers.symbolic.lattice import InputLattice
+from hil.controllers.symbolic.levels import LevelSolver
+from hil.controllers.symbolic.planes_kernel import nested_classes
 from hil.controllers.symbolic.problem import SymbolicProblem
 from hil.controllers.symbolic.sweep import (
     erode_free,
@@ -38,7 +40,12 @@ BoolArray = NDArray[np.bool_]
 I32Array = NDArray[np.int32]
 U64Array = NDArray[np.uint64]
 
-__all__ = ["N_PLANES", "Synthesizer", "synthesize"]
+__all__ = ["KERNELS", "N_PLANES", "Synthesizer", "synthesize"]
+
+KERNELS = ("planes", "frontier")
+"""The fixed-point kernels: :mod:`planes_kernel` (the default; the Synthesizer falls
+back to the frontier kernel for tables whose class-1 boxes do not contain class 0's) and
+:mod:`sweep`'s frontier kernel (the reference)."""
 
 N_PLANES = 8
 """Bit planes of the values: at most 255 levels."""
@@ -105,6 +112,7 @@ class Synthesizer:
         memo: Reuse a controller this process already solved for the same tables and
             masks (the last :data:`MEMO_SIZE`): simulated runs and campaigns solve the
             same layout over and over. Benchmarks turn it off.
+        kernel: One of :data:`KERNELS`; both give identical winning sets and values.
     """
 
     def __init__(
@@ -113,9 +121,13 @@ class Synthesizer:
         threads: int | None = 1,
         trace_memory: bool = False,
         memo: bool = True,
+        kernel: str = "planes",
     ) -> None:
         if threads is not None and threads < 1:
             raise GridError(f"threads must be >= 1, got {threads!r}")
+        if kernel not in KERNELS:
+            raise GridError(f"kernel must be one of {KERNELS!r}, got {kernel!r}")
+        self._kernel = kernel
         self._tables = tables
         self._lattice = InputLattice.of(tables.inputs)
         self._threads = threads
@@ -172,6 +184,9 @@ class Synthesizer:
             + 2 * rows_words // 8  # kill
             + 2 * nx * ny * npsi * 4  # the controller's values from rest, and a layer's
             + (int(self._f_layers) + 1) * (nx + 2 * px) * (nw + 2 * pw) * 8
+            # planes kernel: its W, viable, B, new A, new B, 2 scratch, values
+            + m * npsi * (nw + 2 * pw) * (nx + 2 * px) * 8
+            + (N_CLASSES - 1 + 5 + N_PLANES) * rows_words
         )
 
     @property
@@ -249,6 +264,82 @@ class Synthesizer:
             return controller
         return self.solve(free, target, obstacles, free_cells, start)
 
+    def _words(self, free: BoolArray, target: BoolArray) -> tuple[U64Array, U64Array]:
+        """Return the viable words (3, m, nx, npsi, nw) and goal words (nx, npsi, nw)."""
+        t = self._tables
+        nx, ny, npsi = t.grid.shape
+        m = t.n_inputs
+        n_ranges = self._psi_lo.shape[0]
+        px, _, pw = (int(p) for p in self._pads)
+        nw = (ny + 63) // 64
+        free_words = pack_rows(np.ascontiguousarray(free.reshape(-1, ny))).reshape(n_ranges, nx, nw)
+        viable = np.zeros((N_CLASSES, m, nx, npsi, nw), dtype=np.uint64)
+        f_pad = np.zeros((nx + 2 * px, nw + 2 * pw), dtype=np.uint64)
+        f_eroded = np.zeros((self._f_layers, nx + 2 * px, nw + 2 * pw), dtype=np.uint64)
+        _all_viable(
+            free_words,
+            self._order,
+            self._starts,
+            t.tube_x0,
+            t.tube_n,
+            t.tube_y,
+            px,
+            pw,
+            f_pad,
+            f_eroded,
+            viable,
+        )
+        goal_cells = np.ascontiguousarray(np.transpose(target, (0, 2, 1)).reshape(-1, ny))
+        goal = pack_rows(goal_cells).reshape(nx, npsi, nw)
+        return viable, goal
+
+    def _level_solver(self, viable: U64Array, goal: U64Array, threads: int) -> LevelSolver:
+        t = self._tables
+        axes = self._lattice.axes
+        return LevelSolver(
+            goal, viable, self._pads, t.succ, t.heading,
+            (len(axes[0]), len(axes[1]), len(axes[2])), N_PLANES, threads,
+        )  # fmt: skip
+
+    def _frontier(
+        self, viable: U64Array, goal: U64Array, threads: int
+    ) -> tuple[U64Array, U64Array, int]:
+        """Run :mod:`sweep`'s frontier kernel; return W, planes and the level count."""
+        t = self._tables
+        nx, ny, npsi = t.grid.shape
+        m = t.n_inputs
+        px, ph, pw = (int(p) for p in self._pads)
+        nw = (ny + 63) // 64
+        W = np.zeros((m, nx + 2 * px, npsi + 2 * ph, nw + 2 * pw), dtype=np.uint64)
+        n_rows = nx * npsi
+        n_rw = (n_rows + 63) // 64
+        chmask = np.zeros((m, n_rw), dtype=np.uint64)
+        init_layers(goal, W, px, ph, pw, chmask)
+        b_set = np.zeros((m, n_rows, nw), dtype=np.uint64)
+        planes = np.zeros((m, nx, npsi, nw, N_PLANES), dtype=np.uint64)
+        umask = np.zeros((m, n_rw), dtype=np.uint64)
+        has_a = np.zeros((m, n_rw), dtype=np.uint64)
+        has_b = np.zeros((m, n_rw), dtype=np.uint64)
+        new_a = np.empty((m, n_rows, nw), dtype=np.uint64)
+        new_b = np.empty((m, n_rows, nw), dtype=np.uint64)
+        kill = np.zeros((2, m, n_rows, nw), dtype=np.uint8)
+        lat = self._lattice
+        args = (
+            W, b_set, viable, planes, self._pads, t.succ, t.heading, self._reach,
+            self._h_reach, lat.neighbours, lat.n_neighbours, chmask, umask, has_a, has_b,
+            new_a, new_b, kill,
+        )  # fmt: skip
+        if threads == 1:
+            levels = fixed_point_serial(*args)
+        else:
+            previous = numba.get_num_threads()
+            numba.set_num_threads(min(threads, _max_threads()))
+            try:
+                levels = fixed_point_parallel(*args)
+            finally:
+                numba.set_num_threads(previous)
+        return W, planes, int(levels)
+
     def solve(
         self,
         free: BoolArray,
@@ -286,61 +377,78 @@ class Synthesizer:
             )
         require_bytes(self.solve_bytes, f"a solve on the {nx} x {ny} x {npsi} grid, {m} inputs")
         t0 = time.perf_counter() if start is None else start
-        px, ph, pw = (int(p) for p in self._pads)
-        nw = (ny + 63) // 64
-        free_words = pack_rows(np.ascontiguousarray(free.reshape(-1, ny))).reshape(n_ranges, nx, nw)
-        viable = np.zeros((N_CLASSES, m, nx, npsi, nw), dtype=np.uint64)
-        f_pad = np.zeros((nx + 2 * px, nw + 2 * pw), dtype=np.uint64)
-        f_eroded = np.zeros((self._f_layers, nx + 2 * px, nw + 2 * pw), dtype=np.uint64)
-        _all_viable(
-            free_words,
-            self._order,
-            self._starts,
-            t.tube_x0,
-            t.tube_n,
-            t.tube_y,
-            px,
-            pw,
-            f_pad,
-            f_eroded,
-            viable,
-        )
-        goal_cells = np.ascontiguousarray(np.transpose(target, (0, 2, 1)).reshape(-1, ny))
-        goal = pack_rows(goal_cells).reshape(nx, npsi, nw)
-        W = np.zeros((m, nx + 2 * px, npsi + 2 * ph, nw + 2 * pw), dtype=np.uint64)
-        n_rows = nx * npsi
-        n_rw = (n_rows + 63) // 64
-        chmask = np.zeros((m, n_rw), dtype=np.uint64)
-        init_layers(goal, W, px, ph, pw, chmask)
-        b_set = np.zeros((m, n_rows, nw), dtype=np.uint64)
-        planes = np.zeros((m, nx, npsi, nw, N_PLANES), dtype=np.uint64)
-        umask = np.zeros((m, n_rw), dtype=np.uint64)
-        has_a = np.zeros((m, n_rw), dtype=np.uint64)
-        has_b = np.zeros((m, n_rw), dtype=np.uint64)
-        new_a = np.empty((m, n_rows, nw), dtype=np.uint64)
-        new_b = np.empty((m, n_rows, nw), dtype=np.uint64)
-        kill = np.zeros((2, m, n_rows, nw), dtype=np.uint8)
-        lat = self._lattice
-        args = (
-            W, b_set, viable, planes, self._pads, t.succ, t.heading, self._reach,
-            self._h_reach, lat.neighbours, lat.n_neighbours, chmask, umask, has_a, has_b,
-            new_a, new_b, kill,
-        )  # fmt: skip
+        viable, goal = self._words(free, target)
         threads = 1 if self._threads == 1 else (self._threads or _max_threads())
-        if threads == 1:
-            levels = fixed_point_serial(*args)
-        else:
-            previous = numba.get_num_threads()
-            numba.set_num_threads(min(threads, _max_threads()))
-            try:
-                levels = fixed_point_parallel(*args)
-            finally:
-                numba.set_num_threads(previous)
+        if self._kernel == "planes" and nested_classes(t.succ, t.heading, viable):
+            solver = self._level_solver(viable, goal, threads)
+            levels = solver.solve()
+            if levels < 0:
+                raise GridError(f"the fixed point needs more than {2**N_PLANES - 1} levels")
+            return self.controller_of(solver, target, obstacles, free_cells, t0)
+        W, planes, levels = self._frontier(viable, goal, threads)
         if levels < 0:
             raise GridError(f"the fixed point needs more than {2**N_PLANES - 1} levels")
+        return self._controller(
+            W, planes, viable, levels, target, obstacles, free_cells, t0, threads
+        )
+
+    def begin(self, free: BoolArray, target: BoolArray) -> LevelSolver:
+        """Start a solve driven one BFS level per call (masks as :meth:`solve`'s).
+
+        ``solver.advance()`` joins the states of value ``solver.level + 1`` (returns 0 at
+        the fixed point); :meth:`controller_of` makes a controller of the states joined so
+        far at any point (every state of value <= ``solver.level`` is final).
+
+        Raises:
+            GridError: Masks of the wrong shape, or tables whose class-1 boxes do not
+                contain class 0's (only the frontier kernel solves those).
+        """
+        t = self._tables
+        nx, ny, npsi = t.grid.shape
+        if free.shape != (self._psi_lo.shape[0], nx, ny) or target.shape != (nx, ny, npsi):
+            raise GridError(f"masks of shapes {free.shape!r}, {target.shape!r} do not fit the grid")
+        viable, goal = self._words(free, target)
+        if not nested_classes(t.succ, t.heading, viable):
+            raise GridError("class-1 boxes do not contain class 0's: use the frontier kernel")
+        threads = 1 if self._threads == 1 else (self._threads or _max_threads())
+        return self._level_solver(viable, goal, threads)
+
+    def controller_of(
+        self,
+        solver: LevelSolver,
+        target: BoolArray,
+        obstacles: BoolArray,
+        free_cells: int | None = None,
+        start: float | None = None,
+    ) -> Controller:
+        """Return a controller of the states `solver` joined so far (a copy: it may go on).
+
+        Its stats' levels is ``solver.level``; seconds count from `start` if given.
+        """
+        W, planes = solver.export()
+        t0 = time.perf_counter() if start is None else start
+        return self._controller(
+            W, planes, solver.viable, solver.level, target, obstacles, free_cells, t0,
+            solver.threads,
+        )  # fmt: skip
+
+    def _controller(
+        self,
+        W: U64Array,
+        planes: U64Array,
+        viable: U64Array,
+        levels: int,
+        target: BoolArray,
+        obstacles: BoolArray,
+        free_cells: int | None,
+        t0: float,
+        threads: int,
+    ) -> Controller:
+        npsi = self._tables.grid.npsi
         seconds = time.perf_counter() - t0
         return Controller(
-            t, lat, W, planes, viable, self._pads, obstacles.astype(bool), SynthesisStats(
+            self._tables, self._lattice, W, planes, viable, self._pads, obstacles.astype(bool),
+            SynthesisStats(
                 levels=int(levels), seconds=seconds, winning_cells=0,
                 free_cells=int((~obstacles).sum()) * npsi if free_cells is None else free_cells,
                 target_cells=int(target.sum()),
