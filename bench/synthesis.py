@@ -64,6 +64,32 @@ def _solve_times(
     return wall, statistics.median(cpu), controllers
 
 
+def _kernel_ratio(
+    tables: Tables, problem: SymbolicProblem, threads: int, reps: int
+) -> tuple[float, float, bool]:
+    """Return the best wall times of the frontier and planes kernels, and whether they agree.
+
+    Interleaved (frontier, planes, frontier, planes, ...) in this process, so that the
+    machine's load weighs on both alike; each warmed first.
+    """
+    solvers = {
+        kernel: Synthesizer(tables, threads=threads, memo=False, kernel=kernel)
+        for kernel in ("frontier", "planes")
+    }
+    best = {kernel: float("inf") for kernel in solvers}
+    out: dict[str, Controller] = {}
+    for kernel, synthesizer in solvers.items():
+        out[kernel] = synthesizer.solve_problem(problem)  # warm-up: numba load or compile
+    for _ in range(reps):
+        for kernel, synthesizer in solvers.items():
+            start = time.perf_counter()
+            out[kernel] = synthesizer.solve_problem(problem)
+            best[kernel] = min(best[kernel], time.perf_counter() - start)
+    old, new = out["frontier"], out["planes"]
+    same = bool(np.array_equal(old.values, new.values) and old.stats.levels == new.stats.levels)
+    return best["frontier"], best["planes"], same
+
+
 def _vs(target_s: float, measured_s: float) -> str:
     verdict = "meets" if measured_s <= target_s else "misses"
     return f"{verdict} {target_s * 1e3:.0f} ms ({target_s / measured_s:.2f}x)"
@@ -84,6 +110,9 @@ def main(argv: list[str] | None = None) -> int:
         "--layouts", type=int, default=9, help="obstacle layouts (first: the paper's)"
     )
     parser.add_argument("--dense-sweeps", type=int, default=2, help="dense baseline sweeps to time")
+    parser.add_argument(
+        "--kernel-reps", type=int, default=3, help="interleaved solves per kernel (best of)"
+    )
     parser.add_argument(
         "--quick", action="store_true", help="fewer layouts, no scaling, no dense baseline"
     )
@@ -182,6 +211,21 @@ def main(argv: list[str] | None = None) -> int:
         f"{0.5 / best:.2f}x",
         "best of 1 and 2 threads, 2 CPU cores",
     )
+
+    print(
+        "\nkernels on the paper layout: frontier (sweep.py, the reference) vs bit planes "
+        "(planes_kernel.py, the default), interleaved in this process, best of "
+        f"{1 if args.quick else args.kernel_reps}"
+    )
+    for threads in (1, 2):
+        old_s, new_s, same = _kernel_ratio(
+            tables, problem, threads, 1 if args.quick else args.kernel_reps
+        )
+        _row(
+            f"frontier / planes kernel, {threads} thread{'s' if threads > 1 else ''}",
+            f"{old_s:.2f} / {new_s:.2f} s",
+            f"planes {new_s / old_s:.2f}x the frontier's; same values: {same}",
+        )
 
     if args.quick:
         return 0

@@ -24,6 +24,8 @@ from hil.controllers.symbolic.controller import Controller, SynthesisStats
 from hil.controllers.symbolic.errors import GridError, NoWinningSetError
 from hil.controllers.symbolic.kernels import pack_rows, state_value
 from hil.controllers.symbolic.lattice import InputLattice
+from hil.controllers.symbolic.levels import LevelSolver
+from hil.controllers.symbolic.planes_kernel import nested_classes
 from hil.controllers.symbolic.problem import SymbolicProblem
 from hil.controllers.symbolic.store import ControllerStore, SolvedLayout, solve_key
 from hil.controllers.symbolic.sweep import (
@@ -41,7 +43,12 @@ BoolArray = NDArray[np.bool_]
 I32Array = NDArray[np.int32]
 U64Array = NDArray[np.uint64]
 
-__all__ = ["N_PLANES", "Synthesizer", "Watch", "synthesize"]
+__all__ = ["KERNELS", "N_PLANES", "Synthesizer", "Watch", "synthesize"]
+
+KERNELS = ("planes", "frontier")
+"""The fixed-point kernels: :mod:`planes_kernel` (the default; the Synthesizer falls
+back to the frontier kernel for tables whose class-1 boxes do not contain class 0's) and
+:mod:`sweep`'s frontier kernel (the reference)."""
 
 N_PLANES = 8
 """Bit planes of the values: at most 255 levels."""
@@ -131,6 +138,7 @@ class Synthesizer:
             Benchmarks turn it and `memo` off, so that every call solves.
         cache_dir: The table cache folder whose ``controllers/`` is the store
             (:func:`~hil.controllers.symbolic.abstraction.default_cache_dir` if None).
+        kernel: One of :data:`KERNELS`; both give identical winning sets and values.
     """
 
     def __init__(
@@ -141,9 +149,13 @@ class Synthesizer:
         memo: bool = True,
         use_cache: bool = True,
         cache_dir: Path | None = None,
+        kernel: str = "planes",
     ) -> None:
         if threads is not None and threads < 1:
             raise GridError(f"threads must be >= 1, got {threads!r}")
+        if kernel not in KERNELS:
+            raise GridError(f"kernel must be one of {KERNELS!r}, got {kernel!r}")
+        self._kernel = kernel
         self._tables = tables
         self._lattice = InputLattice.of(tables.inputs)
         self._threads = threads
@@ -202,6 +214,9 @@ class Synthesizer:
             + 2 * rows_words // 8  # kill
             + 2 * nx * ny * npsi * 4  # the controller's values from rest, and a layer's
             + (int(self._f_layers) + 1) * (nx + 2 * px) * (nw + 2 * pw) * 8
+            # planes kernel: its W, viable, B, new A, new B, 2 scratch, values
+            + m * npsi * (nw + 2 * pw) * (nx + 2 * px) * 8
+            + (N_CLASSES - 1 + 5 + N_PLANES) * rows_words
         )
 
     @property
@@ -390,6 +405,100 @@ class Synthesizer:
         controller.stats = replace(controller.stats, peak_bytes=peak)
         return controller
 
+    def _words(self, free: BoolArray, target: BoolArray) -> tuple[U64Array, U64Array]:
+        """Return the viable words (3, m, nx, npsi, nw) and goal words (nx, npsi, nw)."""
+        nx, ny, npsi = self._tables.grid.shape
+        nw = (ny + 63) // 64
+        goal_cells = np.ascontiguousarray(np.transpose(target, (0, 2, 1)).reshape(-1, ny))
+        goal = pack_rows(goal_cells).reshape(nx, npsi, nw)
+        return self._viable(free), goal
+
+    def _level_solver(self, viable: U64Array, goal: U64Array, threads: int) -> LevelSolver:
+        t = self._tables
+        axes = self._lattice.axes
+        return LevelSolver(
+            goal, viable, self._pads, t.succ, t.heading,
+            (len(axes[0]), len(axes[1]), len(axes[2])), N_PLANES, threads,
+        )  # fmt: skip
+
+    def _frontier_stages(
+        self, viable: U64Array, goal: U64Array, threads: int, watch: Watch | None
+    ) -> Iterator[tuple[U64Array, U64Array, int, bool]]:
+        """Run :mod:`sweep`'s frontier kernel one level per call.
+
+        Yields (W, planes, levels, complete): once the watched state joined (an early
+        stage, W a copy), then at the fixed point.
+        """
+        t = self._tables
+        nx, ny, npsi = t.grid.shape
+        m = t.n_inputs
+        px, ph, pw = (int(p) for p in self._pads)
+        nw = (ny + 63) // 64
+        W = np.zeros((m, nx + 2 * px, npsi + 2 * ph, nw + 2 * pw), dtype=np.uint64)
+        n_rows = nx * npsi
+        n_rw = (n_rows + 63) // 64
+        chmask = np.zeros((m, n_rw), dtype=np.uint64)
+        init_layers(goal, W, px, ph, pw, chmask)
+        b_set = np.zeros((m, n_rows, nw), dtype=np.uint64)
+        planes = np.zeros((m, nx, npsi, nw, N_PLANES), dtype=np.uint64)
+        umask = np.zeros((m, n_rw), dtype=np.uint64)
+        has_a = np.zeros((m, n_rw), dtype=np.uint64)
+        has_b = np.zeros((m, n_rw), dtype=np.uint64)
+        new_a = np.empty((m, n_rows, nw), dtype=np.uint64)
+        new_b = np.empty((m, n_rows, nw), dtype=np.uint64)
+        kill = np.zeros((2, m, n_rows, nw), dtype=np.uint8)
+        lat = self._lattice
+        args = (
+            W, b_set, viable, planes, self._pads, t.succ, t.heading, self._reach,
+            self._h_reach, lat.neighbours, lat.n_neighbours, chmask, umask, has_a, has_b,
+            new_a, new_b, kill,
+        )  # fmt: skip
+        advance = advance_level_serial if threads == 1 else advance_level_parallel
+        previous = numba.get_num_threads()
+        if threads > 1:
+            numba.set_num_threads(min(threads, _max_threads()))
+        try:
+            level = 0
+            changed = start_levels(W, planes, self._reach, self._h_reach, chmask, umask)
+            watching = watch is not None
+            while True:
+                if watching and watch is not None and watch.covered_by(W, planes, self._pads):
+                    watching = False
+                    if changed > 0:
+                        # States of value <= level are final; the solve goes on in W, so
+                        # the early controller keeps its own copy of the winning bits
+                        # (the planes' bits of later states stay hidden behind them).
+                        yield W.copy(), planes, level, False
+                if changed == 0:
+                    break
+                if level + 1 > 2**N_PLANES - 1:
+                    raise GridError(f"the fixed point needs more than {2**N_PLANES - 1} levels")
+                changed = advance(level, *args)
+                if changed > 0:
+                    level += 1
+        finally:
+            if threads > 1:
+                numba.set_num_threads(previous)
+        yield W, planes, level, True
+
+    def _planes_stages(
+        self, solver: LevelSolver, watch: Watch | None
+    ) -> Iterator[tuple[U64Array, U64Array, int, bool]]:
+        """Run :mod:`planes_kernel` (see :meth:`_frontier_stages`); each stage exported."""
+        if watch is not None:
+            i, j, k = watch.cell
+            while not solver.done:
+                if solver.joined(watch.reference, i, j, k):
+                    W, planes = solver.export()
+                    yield W, planes, solver.level, False
+                    break
+                if solver.advance() < 0:
+                    raise GridError(f"the fixed point needs more than {2**N_PLANES - 1} levels")
+        if solver.solve() < 0:
+            raise GridError(f"the fixed point needs more than {2**N_PLANES - 1} levels")
+        W, planes = solver.export()
+        yield W, planes, solver.level, True
+
     def solve(
         self,
         free: BoolArray,
@@ -444,70 +553,82 @@ class Synthesizer:
             )
         require_bytes(self.solve_bytes, f"a solve on the {nx} x {ny} x {npsi} grid, {m} inputs")
         t0 = time.perf_counter() if start is None else start
-        px, ph, pw = (int(p) for p in self._pads)
-        nw = (ny + 63) // 64
-        viable = self._viable(free)
-        goal_cells = np.ascontiguousarray(np.transpose(target, (0, 2, 1)).reshape(-1, ny))
-        goal = pack_rows(goal_cells).reshape(nx, npsi, nw)
-        W = np.zeros((m, nx + 2 * px, npsi + 2 * ph, nw + 2 * pw), dtype=np.uint64)
-        n_rows = nx * npsi
-        n_rw = (n_rows + 63) // 64
-        chmask = np.zeros((m, n_rw), dtype=np.uint64)
-        init_layers(goal, W, px, ph, pw, chmask)
-        b_set = np.zeros((m, n_rows, nw), dtype=np.uint64)
-        planes = np.zeros((m, nx, npsi, nw, N_PLANES), dtype=np.uint64)
-        umask = np.zeros((m, n_rw), dtype=np.uint64)
-        has_a = np.zeros((m, n_rw), dtype=np.uint64)
-        has_b = np.zeros((m, n_rw), dtype=np.uint64)
-        new_a = np.empty((m, n_rows, nw), dtype=np.uint64)
-        new_b = np.empty((m, n_rows, nw), dtype=np.uint64)
-        kill = np.zeros((2, m, n_rows, nw), dtype=np.uint8)
-        lat = self._lattice
-        args = (
-            W, b_set, viable, planes, self._pads, t.succ, t.heading, self._reach,
-            self._h_reach, lat.neighbours, lat.n_neighbours, chmask, umask, has_a, has_b,
-            new_a, new_b, kill,
-        )  # fmt: skip
+        viable, goal = self._words(free, target)
         threads = 1 if self._threads == 1 else (self._threads or _max_threads())
-        advance = advance_level_serial if threads == 1 else advance_level_parallel
-        free_total = int((~obstacles).sum()) * npsi if free_cells is None else free_cells
-        obstacle_cells = obstacles.astype(bool)
+        stages: Iterator[tuple[U64Array, U64Array, int, bool]]
+        if self._kernel == "planes" and nested_classes(t.succ, t.heading, viable):
+            stages = self._planes_stages(self._level_solver(viable, goal, threads), watch)
+        else:
+            stages = self._frontier_stages(viable, goal, threads, watch)
+        for W, planes, levels, complete in stages:
+            yield self._controller(
+                W, planes, viable, levels, target, obstacles, free_cells, t0, threads, complete
+            )
 
-        def controller(winning: U64Array, levels: int, complete: bool) -> Controller:
-            return Controller(
-                t, lat, winning, planes, viable, self._pads, obstacle_cells, SynthesisStats(
-                    levels=levels, seconds=time.perf_counter() - t0, winning_cells=0,
-                    free_cells=free_total, target_cells=int(target.sum()), threads=threads,
-                    complete=complete,
-                ),
-            )  # fmt: skip
+    def begin(self, free: BoolArray, target: BoolArray) -> LevelSolver:
+        """Start a solve driven one BFS level per call (masks as :meth:`solve`'s).
 
-        previous = numba.get_num_threads()
-        if threads > 1:
-            numba.set_num_threads(min(threads, _max_threads()))
-        try:
-            level = 0
-            changed = start_levels(W, planes, self._reach, self._h_reach, chmask, umask)
-            watching = watch is not None
-            while True:
-                if watching and watch is not None and watch.covered_by(W, planes, self._pads):
-                    watching = False
-                    if changed > 0:
-                        # States of value <= level are final; the solve goes on in W, so
-                        # the early controller keeps its own copy of the winning bits
-                        # (the planes' bits of later states stay hidden behind them).
-                        yield controller(W.copy(), level, complete=False)
-                if changed == 0:
-                    break
-                if level + 1 > 2**N_PLANES - 1:
-                    raise GridError(f"the fixed point needs more than {2**N_PLANES - 1} levels")
-                changed = advance(level, *args)
-                if changed > 0:
-                    level += 1
-        finally:
-            if threads > 1:
-                numba.set_num_threads(previous)
-        yield controller(W, level, complete=True)
+        ``solver.advance()`` joins the states of value ``solver.level + 1`` (returns 0 at
+        the fixed point); :meth:`controller_of` makes a controller of the states joined so
+        far at any point (every state of value <= ``solver.level`` is final).
+
+        Raises:
+            GridError: Masks of the wrong shape, or tables whose class-1 boxes do not
+                contain class 0's (only the frontier kernel solves those).
+        """
+        t = self._tables
+        nx, ny, npsi = t.grid.shape
+        if free.shape != (self._psi_lo.shape[0], nx, ny) or target.shape != (nx, ny, npsi):
+            raise GridError(f"masks of shapes {free.shape!r}, {target.shape!r} do not fit the grid")
+        viable, goal = self._words(free, target)
+        if not nested_classes(t.succ, t.heading, viable):
+            raise GridError("class-1 boxes do not contain class 0's: use the frontier kernel")
+        threads = 1 if self._threads == 1 else (self._threads or _max_threads())
+        return self._level_solver(viable, goal, threads)
+
+    def controller_of(
+        self,
+        solver: LevelSolver,
+        target: BoolArray,
+        obstacles: BoolArray,
+        free_cells: int | None = None,
+        start: float | None = None,
+    ) -> Controller:
+        """Return a controller of the states `solver` joined so far (a copy: it may go on).
+
+        Its stats' levels is ``solver.level``; seconds count from `start` if given.
+        """
+        W, planes = solver.export()
+        t0 = time.perf_counter() if start is None else start
+        return self._controller(
+            W, planes, solver.viable, solver.level, target, obstacles, free_cells, t0,
+            solver.threads,
+        )  # fmt: skip
+
+    def _controller(
+        self,
+        W: U64Array,
+        planes: U64Array,
+        viable: U64Array,
+        levels: int,
+        target: BoolArray,
+        obstacles: BoolArray,
+        free_cells: int | None,
+        t0: float,
+        threads: int,
+        complete: bool = True,
+    ) -> Controller:
+        npsi = self._tables.grid.npsi
+        seconds = time.perf_counter() - t0
+        return Controller(
+            self._tables, self._lattice, W, planes, viable, self._pads, obstacles.astype(bool),
+            SynthesisStats(
+                levels=int(levels), seconds=seconds, winning_cells=0,
+                free_cells=int((~obstacles).sum()) * npsi if free_cells is None else free_cells,
+                target_cells=int(target.sum()),
+                threads=threads, complete=complete,
+            ),
+        )  # fmt: skip
 
 
 def synthesize(

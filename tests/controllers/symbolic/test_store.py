@@ -31,11 +31,11 @@ def cache_dir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
 
 
 def _no_kernel(monkeypatch: pytest.MonkeyPatch) -> None:
-    def refuse(*args: object) -> int:
+    def refuse(*args: object, **kwargs: object) -> None:
         raise AssertionError("the fixed point ran")
 
-    monkeypatch.setattr(synthesis_module, "advance_level_serial", refuse)
-    monkeypatch.setattr(synthesis_module, "advance_level_parallel", refuse)
+    # Every solve, whichever kernel, goes through Synthesizer.stages.
+    monkeypatch.setattr(synthesis_module.Synthesizer, "stages", refuse)
 
 
 def _solve(tables: Tables, problem: SymbolicProblem) -> Controller:

@@ -1,0 +1,168 @@
+"""The fixed point's whole state, advanced one BFS level per call (:mod:`planes_kernel`).
+
+A caller that watches a state can stop as soon as it joined: after each
+:meth:`LevelSolver.advance`, every state of value <= :attr:`LevelSolver.level` holds its
+final bit and value and no state of a larger value is set; :meth:`LevelSolver.export`
+returns them as new arrays in :mod:`sweep`'s layout (what the
+:class:`~hil.controllers.symbolic.controller.Controller` reads), so a snapshot stays valid
+while the solve goes on.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from hil.controllers.symbolic.planes_kernel import (
+    advance_parallel,
+    advance_serial,
+    export_layout,
+    init_planes_state,
+    solve_serial,
+    transpose_viable,
+)
+
+U64Array = NDArray[np.uint64]
+I32Array = NDArray[np.int32]
+
+__all__ = ["LevelSolver"]
+
+_Args = tuple[
+    U64Array, U64Array, U64Array, U64Array, U64Array,  # Wt, Bt, Vt, nA, nB
+    I32Array, I32Array, I32Array, I32Array, I32Array,  # band_a, band_b, ch, succ, heading
+    U64Array, U64Array, I32Array, I32Array, I32Array,  # D1, D2, band_1, band_2, lattice
+    U64Array, I32Array,  # Pt, pads
+]  # fmt: skip
+
+
+class LevelSolver:
+    """One solve of the game on :mod:`planes_kernel`, one level per :meth:`advance`.
+
+    Args:
+        goal: Target words, shape (nx, npsi, nw) (bit b of word w: cell j = 64 w + b).
+        viable: Viable words, shape (3, m, nx, npsi, nw) (:func:`sweep.viable_words`).
+        pads: (px, ph, pw) of the winning array, as :mod:`sweep` needs them.
+        succ: Successor boxes (2, npsi, m, 4); heading: heading ranges (2, m, 2).
+        lattice_shape: Points per axis of the input lattice (input (a, b, c) is index
+            (a * n_b + b) * n_c + c; N(u): one step per axis, :class:`InputLattice`).
+        n_planes: Value bit planes (at most 2**n_planes - 1 levels).
+        threads: 1 runs on the calling thread; more use numba's threads (at most that many).
+    """
+
+    def __init__(
+        self,
+        goal: U64Array,
+        viable: U64Array,
+        pads: I32Array,
+        succ: I32Array,
+        heading: I32Array,
+        lattice_shape: tuple[int, int, int],
+        n_planes: int,
+        threads: int = 1,
+    ) -> None:
+        nx, npsi, nw = goal.shape
+        m = viable.shape[1]
+        px, ph, pw = (int(p) for p in pads)
+        self.pads = np.ascontiguousarray(pads, dtype=np.int32)
+        self._w_shape = (m, nx + 2 * px, npsi + 2 * ph, nw + 2 * pw)
+        self._p_shape = (m, nx, npsi, nw, n_planes)
+        self._pt = np.zeros((m, npsi, nw, n_planes, nx), dtype=np.uint64)
+        self._wt = np.zeros((m, npsi, nw + 2 * pw, nx + 2 * px), dtype=np.uint64)
+        self._ch = np.empty((m, npsi, 2), dtype=np.int32)
+        init_planes_state(goal, self._wt, self._ch, px, pw)
+        self._vt = np.empty((2, m, npsi, nw, nx), dtype=np.uint64)
+        transpose_viable(viable, self._vt)
+        self._bt = np.zeros((m, npsi, nw, nx), dtype=np.uint64)
+        self._na = np.zeros((m, npsi, nw, nx), dtype=np.uint64)
+        self._nb = np.zeros((m, npsi, nw, nx), dtype=np.uint64)
+        self._band_a = np.empty((m, npsi, 2), dtype=np.int32)
+        self._band_b = np.empty((m, npsi, 2), dtype=np.int32)
+        self._succ = np.ascontiguousarray(succ, dtype=np.int32)
+        self._heading = np.ascontiguousarray(heading, dtype=np.int32)
+        self._d1 = np.zeros((m, npsi, nw, nx), dtype=np.uint64)
+        self._d2 = np.zeros((m, npsi, nw, nx), dtype=np.uint64)
+        self._band_1 = np.empty((m, npsi, 2), dtype=np.int32)
+        self._band_2 = np.empty((m, npsi, 2), dtype=np.int32)
+        self._lattice = np.array(lattice_shape, dtype=np.int32)
+        self.threads = max(1, int(threads))
+        """Threads :meth:`advance` uses."""
+        self.viable = viable
+        """The viable words it was built on (the Controller keeps them)."""
+        self.level = 0
+        """Every state of value <= level is final (0: the goal)."""
+        self.done = False
+        """The fixed point is reached: nothing joins at level + 1."""
+
+    def _args(self) -> _Args:
+        return (
+            self._wt, self._bt, self._vt, self._na, self._nb, self._band_a, self._band_b,
+            self._ch, self._succ, self._heading, self._d1, self._d2, self._band_1,
+            self._band_2, self._lattice, self._pt, self.pads,
+        )  # fmt: skip
+
+    def _threaded(self) -> tuple[bool, int]:
+        if self.threads == 1:
+            return True, 0
+        limit = int(numba.config.NUMBA_NUM_THREADS)  # type: ignore[attr-defined]
+        return False, min(self.threads, limit)
+
+    def advance(self) -> int:
+        """Join the states of value level + 1; return how many (x, heading) rows changed.
+
+        0: the fixed point (:attr:`done`, level unchanged); -1: level + 1 does not fit
+        the planes (nothing joined).
+        """
+        if self.done:
+            return 0
+        serial, threads = self._threaded()
+        if serial:
+            n = int(advance_serial(self.level, *self._args()))
+        else:
+            previous = numba.get_num_threads()
+            numba.set_num_threads(threads)
+            try:
+                n = int(advance_parallel(self.level, *self._args()))
+            finally:
+                numba.set_num_threads(previous)
+        if n == 0:
+            self.done = True
+        elif n > 0:
+            self.level += 1
+        return n
+
+    def solve(self) -> int:
+        """Advance to the fixed point; return its level (the last with joins), -1: too many."""
+        if self.done:
+            return self.level
+        serial, _ = self._threaded()
+        if serial:
+            levels = int(solve_serial(self.level, *self._args()))
+        else:  # one call per level: the parallel kernel's threads start once per level anyway
+            n = 1
+            while n > 0:
+                n = self.advance()
+            levels = self.level if n == 0 else -1
+        if levels >= 0:
+            self.level = levels
+            self.done = True
+        return levels
+
+    def joined(self, p: int, i: int, j: int, k: int) -> bool:
+        """Return whether state (cell (i, j, k), reference p) has joined (value <= level).
+
+        i, j, k must lie on the grid (0 <= i < nx, 0 <= j < ny, 0 <= k < npsi).
+        """
+        px, _, pw = (int(v) for v in self.pads)
+        word = int(self._wt[p, k, pw + (j >> 6), px + i])
+        return bool((word >> (j & 63)) & 1)
+
+    def export(self) -> tuple[U64Array, U64Array]:
+        """Return (W, planes) of the states joined so far, new arrays in :mod:`sweep`'s layout.
+
+        W: shape (m, nx + 2 px, npsi + 2 ph, nw + 2 pw); planes: (m, nx, npsi, nw, n_planes).
+        """
+        winning = np.zeros(self._w_shape, dtype=np.uint64)
+        planes = np.empty(self._p_shape, dtype=np.uint64)
+        export_layout(self._wt, self._pt, self.pads, winning, planes)
+        return winning, planes

@@ -1,0 +1,622 @@
+"""A level-at-a-time bit-plane kernel of the reach-avoid fixed point, x contiguous.
+
+Same game and same result as :mod:`sweep` (bit-identical W and value planes), built for
+latency: the caller advances the BFS one level per call (:func:`advance_serial`,
+:func:`advance_parallel`), so it can stop once a watched state joined and go on later.
+
+Layout (x contiguous, so every step is a vector operation over a band of x rows):
+
+- ``Wt`` (m, npsi, nw + 2 pw, nx + 2 px): bit b of word pw + w at x index px + i of
+  (layer u, heading k) is cell (i, 64 w + b, k). Padding is zero (outside the grid).
+- ``Bt``, ``nA``, ``nB`` (m, npsi, nw, nx): the class-1 set B_u so far, and the states
+  that joined A_u / B_u at the level being computed.
+- ``Vt`` (2, m, npsi, nw, nx): viable words of classes 0 and 1 (:mod:`sweep`'s viable,
+  transposed).
+- ``ch`` (m, npsi, 2): the x range [lo, hi] of the rows of (u, k) that changed at the
+  last level (lo > hi: none); ``band_a``, ``band_b`` (m, npsi, 2): the x range of the
+  rows of nA / nB that hold any bit.
+- ``Pt`` (m, npsi, nw, n_planes, nx): value bit planes (bit q of a state's value is its
+  bit in plane q). :func:`export_layout` writes Wt and Pt in :mod:`sweep`'s layout (what
+  the Controller reads): one pass at the end (or at a snapshot) instead of a scattered
+  write per joining word, which cost about as much as the rest of the level.
+
+One level: for each input u and heading k, each class c's successor box
+[ox0, ox1] x [oy0, oy1] x [h0, h1] is tested separably on the x band whose boxes reach a
+row changed at the last level: AND over the heading rows k + h0 .. k + h1 (periodic),
+shift by oy0 and erode over the oy1 - oy0 + 1 cells along y by doubling (a 128-bit pair
+per word), then AND over the x window. A state's box test changes only if a cell of its
+box changed at the last level, so states outside the band keep last level's result:
+exact. Then each layer p joins nA_p and the nB_u of its lattice neighbours u in N(p).
+
+Exactness against :mod:`sweep`, which computes B_u only on candidates in
+W_u or joining A_u: with box1 containing box0, heading1 containing heading0 and viable1
+inside viable0 (:func:`nested_classes` checks all three; the Synthesizer uses
+:mod:`sweep` otherwise), viable1 and Pre1(W_u) imply viable0 and Pre0(W_u), so that
+restriction removes nothing and B_u = viable1 and Pre1(W_u). Only B's new states need
+joining: the older ones joined W_p at their own level. A state's value is the level it
+joined at, the same BFS levels as :mod:`sweep`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import prange
+from numpy.typing import NDArray
+
+from hil.core.jit import njit, njit_parallel
+
+U64Array = NDArray[np.uint64]
+I32Array = NDArray[np.int32]
+
+__all__ = [
+    "advance_parallel",
+    "advance_serial",
+    "export_layout",
+    "init_planes_state",
+    "nested_classes",
+    "solve_serial",
+    "transpose_viable",
+]
+
+_ZERO = np.uint64(0)
+_ONE = np.uint64(1)
+_63 = np.uint64(63)
+
+
+@njit
+def _shifted(lo: np.uint64, hi: np.uint64, s: np.uint64) -> np.uint64:
+    """Return bits s .. s + 63 of the 128-bit value hi:lo (0 <= s < 64), without a branch."""
+    return (lo >> s) | ((hi << _ONE) << (_63 - s))
+
+
+def nested_classes(succ: I32Array, heading: I32Array, viable: U64Array) -> bool:
+    """Return whether class 1's boxes, heading ranges and viable words contain class 0's.
+
+    succ (2, npsi, m, 4) = (ox0, ox1, oy0, oy1); heading (2, m, 2); viable (3, m, nx,
+    npsi, nw). Containment is what makes this kernel's B_u equal :mod:`sweep`'s.
+    """
+    s0, s1 = succ[0], succ[1]
+    boxes = bool(
+        np.all(s1[..., 0] <= s0[..., 0])
+        and np.all(s1[..., 1] >= s0[..., 1])
+        and np.all(s1[..., 2] <= s0[..., 2])
+        and np.all(s1[..., 3] >= s0[..., 3])
+    )
+    heads = bool(
+        np.all(heading[1, :, 0] <= heading[0, :, 0])
+        and np.all(heading[1, :, 1] >= heading[0, :, 1])
+    )
+    return boxes and heads and not bool(np.any(viable[1] & ~viable[0]))
+
+
+@njit
+def transpose_viable(viable: U64Array, out: U64Array) -> None:
+    """Fill out (2, m, npsi, nw, nx) from viable (3, m, nx, npsi, nw), classes 0 and 1."""
+    _, m, nx, npsi, nw = viable.shape
+    for c in range(2):
+        for u in range(m):
+            for i in range(nx):
+                for k in range(npsi):
+                    for w in range(nw):
+                        out[c, u, k, w, i] = viable[c, u, i, k, w]
+
+
+@njit
+def init_planes_state(goal: U64Array, Wt: U64Array, ch: I32Array, px: int, pw: int) -> None:
+    """Set every layer of Wt to the goal words (nx, npsi, nw) and ch to the goal's rows.
+
+    :mod:`sweep`'s W is set by :func:`sweep.init_layers`; here the goal rows are the rows
+    "changed at level 0", so the first level tests every box that reaches them.
+    """
+    m = Wt.shape[0]
+    nx, npsi, nw = goal.shape
+    for u in range(m):
+        for k in range(npsi):
+            ch[u, k, 0] = nx
+            ch[u, k, 1] = -1
+    for i in range(nx):
+        for k in range(npsi):
+            anyb = False
+            for w in range(nw):
+                if goal[i, k, w] != _ZERO:
+                    anyb = True
+            if not anyb:
+                continue
+            for u in range(m):
+                for w in range(nw):
+                    Wt[u, k, pw + w, px + i] = goal[i, k, w]
+                ch[u, k, 0] = min(ch[u, k, 0], i)
+                ch[u, k, 1] = max(ch[u, k, 1], i)
+
+
+@njit
+def _box_test(
+    Wt: U64Array,
+    u: int,
+    k0: int,
+    h0: int,
+    h1: int,
+    box: I32Array,
+    lo: int,
+    hi: int,
+    px: int,
+    pw: int,
+    H: U64Array,
+    L: U64Array,
+    R: U64Array,
+    out: U64Array,
+) -> None:
+    """Fill out[w, i], i in [lo, hi]: whether the successor box of (i, 64 w + b, k0) is in Wt[u].
+
+    H (nw + 2, nx + 2 px), L, R (nw, nx + 2 px) and out (nw, nx) are scratch / result.
+    Separable: heading AND, then y shift and erosion, then the x window. Loops run over
+    slice views from index 0 (a provably non-negative index lets LLVM vectorize them).
+    """
+    npsi = Wt.shape[1]
+    nw = out.shape[0]
+    ox0, ox1, oy0, oy1 = box[0], box[1], box[2], box[3]
+    xa = px + lo + ox0
+    xb = px + hi + ox1 + 1
+    nxh = xb - xa
+    a = pw + (oy0 >> 6)
+    s = np.uint64(oy0 & 63)
+    k = (k0 + h0) % npsi
+    for q in range(nw + 2):
+        dst = H[q, :nxh]
+        if a + q < pw or a + q >= pw + nw:  # a padding word: zero in every heading row
+            for x in range(nxh):
+                dst[x] = _ZERO
+            continue
+        src = Wt[u, k, a + q, xa:xb]
+        for x in range(nxh):
+            dst[x] = src[x]
+    for ok in range(h0 + 1, h1 + 1):
+        k = (k0 + ok) % npsi
+        for q in range(nw + 2):
+            if a + q < pw or a + q >= pw + nw:
+                continue
+            src = Wt[u, k, a + q, xa:xb]
+            dst = H[q, :nxh]
+            for x in range(nxh):
+                dst[x] &= src[x]
+    for w in range(nw):
+        h_0 = H[w, :nxh]
+        h_1 = H[w + 1, :nxh]
+        h_2 = H[w + 2, :nxh]
+        lw = L[w, :nxh]
+        rw = R[w, :nxh]
+        for x in range(nxh):
+            lw[x] = _shifted(h_0[x], h_1[x], s)
+            rw[x] = _shifted(h_1[x], h_2[x], s)
+    n = oy1 - oy0 + 1
+    span = 1
+    while 2 * span <= n:
+        d = np.uint64(span)
+        for w in range(nw):
+            lw = L[w, :nxh]
+            rw = R[w, :nxh]
+            for x in range(nxh):
+                lv = lw[x]
+                rv = rw[x]
+                lw[x] = lv & _shifted(lv, rv, d)
+                rw[x] = rv & (rv >> d)
+        span *= 2
+    if n > span:
+        d = np.uint64(n - span)
+        for w in range(nw):
+            lw = L[w, :nxh]
+            rw = R[w, :nxh]
+            for x in range(nxh):
+                lw[x] = lw[x] & _shifted(lw[x], rw[x], d)
+    # The x window by doubling: E_2s(x) = E_s(x) and E_s(x + s), ping-pong in L and R.
+    nb = hi + 1 - lo
+    nbx = ox1 - ox0 + 1
+    for w in range(nw):
+        src_e = L[w]
+        dst_e = R[w]
+        span = 1
+        valid = nxh
+        while 2 * span <= nbx:
+            valid -= span
+            e0 = src_e[:valid]
+            e1 = src_e[span : span + valid]
+            d = dst_e[:valid]
+            for x in range(valid):
+                d[x] = e0[x] & e1[x]
+            src_e, dst_e = dst_e, src_e
+            span *= 2
+        ow = out[w, lo : hi + 1]
+        e0 = src_e[:nb]
+        e1 = src_e[nbx - span : nbx - span + nb]
+        for i in range(nb):
+            ow[i] = e0[i] & e1[i]
+
+
+@njit
+def _sweep_input(
+    u: int,
+    Wt: U64Array,
+    Bt: U64Array,
+    Vt: U64Array,
+    nA: U64Array,
+    nB: U64Array,
+    band_a: I32Array,
+    band_b: I32Array,
+    ch: I32Array,
+    succ: I32Array,
+    heading: I32Array,
+    px: int,
+    pw: int,
+) -> None:
+    """Compute nA[u], nB[u] and their bands for the next level; add nB[u] to Bt[u].
+
+    Reads Wt[u] and ch[u] only, writes only input u's entries (threads may run inputs
+    side by side).
+    """
+    npsi = Wt.shape[1]
+    nw = Bt.shape[2]
+    nx = Bt.shape[3]
+    xp = Wt.shape[3]
+    H = np.empty((nw + 2, xp), dtype=np.uint64)
+    L = np.empty((nw, xp), dtype=np.uint64)
+    R = np.empty((nw, xp), dtype=np.uint64)
+    out = np.empty((nw, nx), dtype=np.uint64)
+    for k0 in range(npsi):
+        for c in range(2):
+            band = band_a if c == 0 else band_b
+            band[u, k0, 0] = nx
+            band[u, k0, 1] = -1
+            h0 = heading[c, u, 0]
+            h1 = heading[c, u, 1]
+            cl = nx
+            chh = -1
+            for ok in range(h0, h1 + 1):
+                k = (k0 + ok) % npsi
+                cl = min(cl, ch[u, k, 0])
+                chh = max(chh, ch[u, k, 1])
+            if cl > chh:
+                continue
+            box = succ[c, k0, u]
+            lo = max(cl - box[1], 0)
+            hi = min(chh - box[0], nx - 1)
+            if lo > hi:
+                continue
+            # Candidates: viable and not yet in W_u (class 0) / in B_u (class 1); a
+            # class-1 state also in W_u or joining A_u (B_u is inside A_u). Only the
+            # candidates' rows need the box test.
+            a0 = band_a[u, k0, 0]
+            a1 = band_a[u, k0, 1]
+            first = nx
+            last = -1
+            for i in range(lo, hi + 1):
+                anyc = _ZERO
+                for w in range(nw):
+                    if c == 0:
+                        anyc |= Vt[0, u, k0, w, i] & ~Wt[u, k0, pw + w, px + i]
+                    else:
+                        inw = Wt[u, k0, pw + w, px + i]
+                        if a0 <= i <= a1:
+                            inw |= nA[u, k0, w, i]
+                        anyc |= Vt[1, u, k0, w, i] & ~Bt[u, k0, w, i] & inw
+                if anyc != _ZERO:
+                    first = min(first, i)
+                    last = i
+            if first > last:
+                continue
+            lo = first
+            hi = last
+            nb = hi + 1 - lo
+            _box_test(Wt, u, k0, h0, h1, box, lo, hi, px, pw, H, L, R, out)
+            dst = nA if c == 0 else nB
+            for w in range(nw):
+                vw = Vt[c, u, k0, w, lo : hi + 1]
+                ow = out[w, lo : hi + 1]
+                dw = dst[u, k0, w, lo : hi + 1]
+                if c == 0:
+                    cur = Wt[u, k0, pw + w, px + lo : px + hi + 1]
+                    for i in range(nb):
+                        dw[i] = vw[i] & ~cur[i] & ow[i]
+                else:
+                    bw = Bt[u, k0, w, lo : hi + 1]
+                    for i in range(nb):
+                        g = vw[i] & ~bw[i] & ow[i]
+                        dw[i] = g
+                        bw[i] |= g
+            first = nx
+            last = -1
+            for i in range(lo, hi + 1):
+                anyb = _ZERO
+                for w in range(nw):
+                    anyb |= dst[u, k0, w, i]
+                if anyb != _ZERO:
+                    first = min(first, i)
+                    last = i
+            band[u, k0, 0] = first
+            band[u, k0, 1] = last
+
+
+@njit
+def _or_into(acc: U64Array, src: U64Array, lo: int, a0: int, a1: int) -> None:
+    """acc[i - lo] |= src[i] for i in [a0, a1] (1-D rows)."""
+    n = a1 + 1 - a0
+    if n <= 0:
+        return
+    dst = acc[a0 - lo : a1 + 1 - lo]
+    s = src[a0 : a1 + 1]
+    for i in range(n):
+        dst[i] |= s[i]
+
+
+@njit
+def _dilate(
+    src: U64Array,
+    sband: I32Array,
+    dst: U64Array,
+    dband: I32Array,
+    k: int,
+    stride: int,
+    size: int,
+) -> None:
+    """dst[u, k] = OR of src[v, k] over v = u and its neighbours u -+ stride on one lattice axis.
+
+    The axis has `size` points, u's coordinate on it is (u // stride) % size. Arrays
+    (m, npsi, nw, nx), only each row's band [lo, hi] (bands (m, npsi, 2)) is read / set.
+    """
+    m = src.shape[0]
+    nw = src.shape[2]
+    nx = src.shape[3]
+    for u in range(m):
+        coord = (u // stride) % size
+        v0 = u - stride if coord > 0 else u
+        v1 = u + stride if coord < size - 1 else u
+        lo = nx
+        hi = -1
+        for v in range(v0, v1 + 1, stride):
+            if sband[v, k, 0] <= sband[v, k, 1]:
+                lo = min(lo, sband[v, k, 0])
+                hi = max(hi, sband[v, k, 1])
+        dband[u, k, 0] = lo
+        dband[u, k, 1] = hi
+        if lo > hi:
+            continue
+        nb = hi + 1 - lo
+        for w in range(nw):
+            dw = dst[u, k, w, lo : hi + 1]
+            for i in range(nb):
+                dw[i] = _ZERO
+            for v in range(v0, v1 + 1, stride):
+                _or_into(dw, src[v, k, w], lo, sband[v, k, 0], sband[v, k, 1])
+
+
+@njit
+def _apply_heading(
+    k: int,
+    level: int,
+    Wt: U64Array,
+    nA: U64Array,
+    nB: U64Array,
+    band_a: I32Array,
+    band_b: I32Array,
+    D1: U64Array,
+    D2: U64Array,
+    band_1: I32Array,
+    band_2: I32Array,
+    ch: I32Array,
+    lattice: I32Array,
+    Pt: U64Array,
+    pads: I32Array,
+) -> int:
+    """Join nA[p] and the neighbours' nB[u] into every layer p at heading k; return rows changed.
+
+    The union of nB over the 3 x 3 x 3 lattice box around p (clipped: N(p) and p) is
+    taken separably, one axis at a time (D1, D2 scratch, shapes of nB). It holds nB[p]
+    too, which adds nothing: nB[p] is inside A_p, so inside W_p or nA[p].
+    Writes ch[:, k], heading k of Wt and of Pt only.
+    """
+    m = Wt.shape[0]
+    nw = nA.shape[2]
+    nx = nA.shape[3]
+    px, pw = pads[0], pads[2]
+    n_c = lattice[2]
+    n_b = lattice[1]
+    n_a = lattice[0]
+    _dilate(nB, band_b, D1, band_1, k, 1, n_c)
+    _dilate(D1, band_1, D2, band_2, k, n_c, n_b)
+    _dilate(D2, band_2, D1, band_1, k, n_c * n_b, n_a)
+    acc = np.empty((nw, nx), dtype=np.uint64)
+    n_changed = 0
+    for p in range(m):
+        ch[p, k, 0] = nx
+        ch[p, k, 1] = -1
+        a0 = band_a[p, k, 0]
+        a1 = band_a[p, k, 1]
+        d0 = band_1[p, k, 0]
+        d1 = band_1[p, k, 1]
+        lo = min(a0, d0)
+        hi = max(a1, d1)
+        if lo > hi:
+            continue
+        nb = hi + 1 - lo
+        anyf = _ZERO
+        for w in range(nw):
+            aw = acc[w, :nb]
+            for i in range(nb):
+                aw[i] = _ZERO
+            _or_into(aw, nA[p, k, w], lo, a0, a1)
+            _or_into(aw, D1[p, k, w], lo, d0, d1)
+            cur = Wt[p, k, pw + w, px + lo : px + hi + 1]
+            for i in range(nb):
+                f = aw[i] & ~cur[i]
+                aw[i] = f
+                cur[i] |= f
+                anyf |= f
+        if anyf == _ZERO:
+            continue
+        for w in range(nw):
+            aw = acc[w, :nb]
+            q = 0
+            lv = level
+            while lv > 0:
+                if lv & 1:
+                    pq = Pt[p, k, w, q, lo : hi + 1]
+                    for i in range(nb):
+                        pq[i] |= aw[i]
+                lv >>= 1
+                q += 1
+        first = nx
+        last = -1
+        for t in range(nb):
+            row = _ZERO
+            for w in range(nw):
+                row |= acc[w, t]
+            if row != _ZERO:
+                n_changed += 1
+                first = min(first, lo + t)
+                last = lo + t
+        ch[p, k, 0] = first
+        ch[p, k, 1] = last
+    return n_changed
+
+
+@njit
+def advance_serial(
+    level: int,
+    Wt: U64Array,
+    Bt: U64Array,
+    Vt: U64Array,
+    nA: U64Array,
+    nB: U64Array,
+    band_a: I32Array,
+    band_b: I32Array,
+    ch: I32Array,
+    succ: I32Array,
+    heading: I32Array,
+    D1: U64Array,
+    D2: U64Array,
+    band_1: I32Array,
+    band_2: I32Array,
+    lattice: I32Array,
+    Pt: U64Array,
+    pads: I32Array,
+) -> int:
+    """Join the states of value level + 1 on the calling thread; return the rows changed.
+
+    0: the fixed point (nothing joined); -1: level + 1 does not fit the planes. On entry
+    every state of value <= level is set (after :func:`init_planes_state` and
+    :func:`sweep.init_layers` for level 0, or the previous call) and ch holds the rows
+    that changed at `level`.
+    """
+    if level + 1 > (1 << Pt.shape[3]) - 1:
+        return -1
+    m = Wt.shape[0]
+    px, pw = pads[0], pads[2]
+    for u in range(m):
+        _sweep_input(u, Wt, Bt, Vt, nA, nB, band_a, band_b, ch, succ, heading, px, pw)
+    n = 0
+    for k in range(Wt.shape[1]):
+        n += _apply_heading(
+            k, level + 1, Wt, nA, nB, band_a, band_b, D1, D2, band_1, band_2, ch, lattice,
+            Pt, pads,
+        )  # fmt: skip
+    return n
+
+
+@njit_parallel
+def advance_parallel(
+    level: int,
+    Wt: U64Array,
+    Bt: U64Array,
+    Vt: U64Array,
+    nA: U64Array,
+    nB: U64Array,
+    band_a: I32Array,
+    band_b: I32Array,
+    ch: I32Array,
+    succ: I32Array,
+    heading: I32Array,
+    D1: U64Array,
+    D2: U64Array,
+    band_1: I32Array,
+    band_2: I32Array,
+    lattice: I32Array,
+    Pt: U64Array,
+    pads: I32Array,
+) -> int:
+    """:func:`advance_serial` with the inputs' sweeps and the layers' joins threaded.
+
+    A sweep writes only its input's entries, a join only its layer's.
+    """
+    if level + 1 > (1 << Pt.shape[3]) - 1:
+        return -1
+    m = Wt.shape[0]
+    px, pw = pads[0], pads[2]
+    for u in prange(m):
+        _sweep_input(u, Wt, Bt, Vt, nA, nB, band_a, band_b, ch, succ, heading, px, pw)
+    npsi = Wt.shape[1]
+    counts = np.zeros(npsi, dtype=np.int64)
+    for k in prange(npsi):
+        counts[k] = _apply_heading(
+            k, level + 1, Wt, nA, nB, band_a, band_b, D1, D2, band_1, band_2, ch, lattice,
+            Pt, pads,
+        )  # fmt: skip
+    return int(counts.sum())
+
+
+@njit
+def solve_serial(
+    level: int,
+    Wt: U64Array,
+    Bt: U64Array,
+    Vt: U64Array,
+    nA: U64Array,
+    nB: U64Array,
+    band_a: I32Array,
+    band_b: I32Array,
+    ch: I32Array,
+    succ: I32Array,
+    heading: I32Array,
+    D1: U64Array,
+    D2: U64Array,
+    band_1: I32Array,
+    band_2: I32Array,
+    lattice: I32Array,
+    Pt: U64Array,
+    pads: I32Array,
+) -> int:
+    """Advance from `level` to the fixed point; return its level (-1: too many levels)."""
+    while True:
+        n = advance_serial(
+            level, Wt, Bt, Vt, nA, nB, band_a, band_b, ch, succ, heading, D1, D2, band_1,
+            band_2, lattice, Pt, pads,
+        )  # fmt: skip
+        if n < 0:
+            return -1
+        if n == 0:
+            return level
+        level += 1
+
+
+@njit
+def export_layout(
+    Wt: U64Array, Pt: U64Array, pads: I32Array, W: U64Array, planes: U64Array
+) -> None:
+    """Write Wt and Pt into :mod:`sweep`'s W (m, nx + 2 px, npsi + 2 ph, nw + 2 pw) and planes.
+
+    W's heading padding rows copy the rows they wrap to; its other padding is left as is
+    (zero). planes has shape (m, nx, npsi, nw, n_planes).
+    """
+    m, npsi, _, _ = Wt.shape
+    _, nx, _, nw, n_planes = planes.shape
+    px, ph, pw = pads[0], pads[1], pads[2]
+    for p in range(m):
+        for i in range(nx):
+            for kp in range(W.shape[2]):
+                k = (kp - ph) % npsi
+                for w in range(nw):
+                    W[p, px + i, kp, pw + w] = Wt[p, k, pw + w, px + i]
+        for k in range(npsi):
+            for w in range(nw):
+                for q in range(n_planes):
+                    src = Pt[p, k, w, q]
+                    for i in range(nx):
+                        planes[p, i, k, w, q] = src[i]
