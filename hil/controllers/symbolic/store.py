@@ -85,7 +85,10 @@ _CHUNK = 16 * 2**20  # raw bytes per zstd frame (frames decompress in parallel)
 _STALE_TMP_S = 3600.0  # a temporary file this old is a writer's that died
 # Sources whose change may change a solve's result (the tables' own key covers the
 # abstraction; the masks are hashed into the key).
-_SOLVER_SOURCES = ("synthesis.py", "sweep.py", "kernels.py", "lattice.py", "store.py")
+_SOLVER_SOURCES = (
+    "synthesis.py", "sweep.py", "planes_kernel.py", "levels.py", "kernels.py", "lattice.py",
+    "store.py",
+)
 
 
 @functools.cache
