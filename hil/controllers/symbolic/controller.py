@@ -364,8 +364,11 @@ class Controller:
                     .reshape(grid.nx, grid.ny)
                 )
                 s = data["stats"]
+                # Files written before `complete` and `loaded_seconds` hold 7 figures.
                 stats = SynthesisStats(
-                    int(s[0]), float(s[1]), int(s[2]), int(s[3]), int(s[4]), int(s[5]), int(s[6])
+                    int(s[0]), float(s[1]), int(s[2]), int(s[3]), int(s[4]), int(s[5]), int(s[6]),
+                    complete=bool(s[7]) if len(s) > 7 else True,
+                    loaded_seconds=float(s[8]) if len(s) > 8 else 0.0,
                 )
             m = tables.n_inputs
             if (

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -189,6 +190,13 @@ def test_save_and_load_round_trip(solved: tuple[Synthesizer, Controller], tmp_pa
     controller.save(path)
     loaded = Controller.load(path)
     assert loaded.stats == controller.stats
+    # Every figure round-trips, also those of an early or a stored controller.
+    controller.stats = replace(original := controller.stats, complete=False, loaded_seconds=0.25)
+    try:
+        controller.save(path)
+        assert Controller.load(path).stats == controller.stats
+    finally:
+        controller.stats = original
     g = controller.grid
     for p in range(controller.inputs.shape[0]):
         np.testing.assert_array_equal(loaded.layer_values(p), controller.layer_values(p))
