@@ -93,6 +93,11 @@ def run(quick: bool = False) -> list[Timing]:
     rest = Synthesizer(tables).lattice.nearest(np.zeros(3))
     moves = MOVES[:1] if quick else MOVES
     thread_counts = (1,) if quick else (1, 2)
+    # Warm-up: numba loads (or compiles) each kernel on its first call; a parallel kernel
+    # is its own compiled function.
+    for threads, kernel in ((1, "frontier"), *((t, "planes") for t in thread_counts)):
+        warm = Synthesizer(tables, threads=threads, memo=False, use_cache=False, kernel=kernel)
+        warm.solve_problem(problem)
     print(
         "\nnew layout -> controller in force at the vessel's state (paper grid; vessel at "
         f"rest; values {', '.join(str(v) for v in VALUES)} in the paper's layout)"
