@@ -43,6 +43,7 @@ import numpy as np
 from numba import prange
 from numpy.typing import NDArray
 
+from hil.controllers.symbolic.sweep import shifted
 from hil.core.jit import njit, njit_parallel
 
 U64Array = NDArray[np.uint64]
@@ -60,13 +61,6 @@ __all__ = [
 
 _ZERO = np.uint64(0)
 _ONE = np.uint64(1)
-_63 = np.uint64(63)
-
-
-@njit
-def _shifted(lo: np.uint64, hi: np.uint64, s: np.uint64) -> np.uint64:
-    """Return bits s .. s + 63 of the 128-bit value hi:lo (0 <= s < 64), without a branch."""
-    return (lo >> s) | ((hi << _ONE) << (_63 - s))
 
 
 def nested_classes(succ: I32Array, heading: I32Array, viable: U64Array) -> bool:
@@ -186,8 +180,8 @@ def _box_test(
         lw = L[w, :nxh]
         rw = R[w, :nxh]
         for x in range(nxh):
-            lw[x] = _shifted(h_0[x], h_1[x], s)
-            rw[x] = _shifted(h_1[x], h_2[x], s)
+            lw[x] = shifted(h_0[x], h_1[x], s)
+            rw[x] = shifted(h_1[x], h_2[x], s)
     n = oy1 - oy0 + 1
     span = 1
     while 2 * span <= n:
@@ -198,7 +192,7 @@ def _box_test(
             for x in range(nxh):
                 lv = lw[x]
                 rv = rw[x]
-                lw[x] = lv & _shifted(lv, rv, d)
+                lw[x] = lv & shifted(lv, rv, d)
                 rw[x] = rv & (rv >> d)
         span *= 2
     if n > span:
@@ -207,7 +201,7 @@ def _box_test(
             lw = L[w, :nxh]
             rw = R[w, :nxh]
             for x in range(nxh):
-                lw[x] = lw[x] & _shifted(lw[x], rw[x], d)
+                lw[x] = lw[x] & shifted(lw[x], rw[x], d)
     # The x window by doubling: E_2s(x) = E_s(x) and E_s(x + s), ping-pong in L and R.
     nb = hi + 1 - lo
     nbx = ox1 - ox0 + 1

@@ -52,6 +52,7 @@ __all__ = [
     "advance_level_serial",
     "erode_free",
     "init_layers",
+    "shifted",
     "start_levels",
     "successor_run",
     "viable_words",
@@ -63,7 +64,7 @@ _63 = np.uint64(63)
 
 
 @njit
-def _shifted(lo: np.uint64, hi: np.uint64, s: np.uint64) -> np.uint64:
+def shifted(lo: np.uint64, hi: np.uint64, s: np.uint64) -> np.uint64:
     """Return bits s .. s + 63 of the 128-bit value hi:lo (0 <= s < 64), without a branch."""
     return (lo >> s) | ((hi << _ONE) << (_63 - s))
 
@@ -84,7 +85,7 @@ def erode_free(F0: U64Array, out: U64Array) -> None:
         for r in range(n_rows):
             for w in range(n_w):
                 if w + q + 1 < n_w:
-                    out[h, r, w] = out[h - 1, r, w] & _shifted(F0[r, w + q], F0[r, w + q + 1], s)
+                    out[h, r, w] = out[h - 1, r, w] & shifted(F0[r, w + q], F0[r, w + q + 1], s)
                 elif w + q < n_w:
                     out[h, r, w] = out[h - 1, r, w] & (F0[r, w + q] >> s)
                 else:
@@ -123,7 +124,7 @@ def viable_words(
                 a = wp + (y0 >> 6)
                 s = np.uint64(y0 & 63)
                 x = ip + x0 + c
-                acc &= _shifted(Fe[h, x, a], Fe[h, x, a + 1], s)
+                acc &= shifted(Fe[h, x, a], Fe[h, x, a + 1], s)
                 if acc == _ZERO:
                     break
             out[cls, u, i, k, w] = acc
@@ -229,11 +230,11 @@ def successor_run(
         x1 &= W[u, x, kk, a + 1]
         x2 &= W[u, x, kk, a + 2]
     s = np.uint64(oy0 & 63)
-    lo = _shifted(x0, x1, s)
-    hi = _shifted(x1, x2, s)
+    lo = shifted(x0, x1, s)
+    hi = shifted(x1, x2, s)
     acc = lo
     for d in range(1, n):
-        acc &= _shifted(lo, hi, np.uint64(d))
+        acc &= shifted(lo, hi, np.uint64(d))
     return acc
 
 

@@ -34,8 +34,10 @@ def _same(a: Controller, b: Controller) -> None:
 
 def _both(problem: SymbolicProblem, threads: int = 1) -> tuple[Controller, Controller]:
     tables, _ = problem.tables(use_cache=False)
-    new = Synthesizer(tables, threads=threads, memo=False).solve_problem(problem)
-    old = Synthesizer(tables, threads=threads, memo=False, kernel="frontier").solve_problem(problem)
+    new = Synthesizer(tables, threads=threads, memo=False, use_cache=False).solve_problem(problem)
+    old = Synthesizer(
+        tables, threads=threads, memo=False, use_cache=False, kernel="frontier"
+    ).solve_problem(problem)
     return new, old
 
 

@@ -8,7 +8,7 @@ from numpy.typing import NDArray
 
 from hil.controllers.symbolic import Controller, SymbolicProblem
 from hil.controllers.symbolic.kernels import layer_values, pack_rows, state_value, state_values
-from hil.controllers.symbolic.sweep import _shifted, erode_free, init_layers, successor_run
+from hil.controllers.symbolic.sweep import erode_free, init_layers, shifted, successor_run
 from tests.controllers.symbolic import tiny
 
 U64Array = NDArray[np.uint64]
@@ -34,7 +34,7 @@ def test_shifted_reads_across_the_word_boundary() -> None:
         [_bits(np.array([lo], dtype=np.uint64)), _bits(np.array([hi], dtype=np.uint64))]
     )
     for s in (0, 1, 17, 63):
-        got = _bits(np.array([_shifted(lo, hi, np.uint64(s))], dtype=np.uint64))
+        got = _bits(np.array([shifted(lo, hi, np.uint64(s))], dtype=np.uint64))
         np.testing.assert_array_equal(got, both[s : s + 64], err_msg=f"s={s}")
 
 
