@@ -42,7 +42,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hil.bag.run_data import RunData
-from hil.controllers.symbolic import NoWinningSetError, cost
+from hil.controllers.symbolic import ControllerSources, NoWinningSetError, cost
 from hil.core.geometry import wrap_angles
 from hil.core.records import Decision
 from hil.core.samples import ObstacleLayout
@@ -126,6 +126,13 @@ def _version_times(run: RunData) -> dict[int, int]:
         if match:
             out.setdefault(int(match.group(1)), event.t_ns)
     return out
+
+
+def _made(layouts: int, sources: ControllerSources) -> str:
+    """Say how the controllers of the layouts new to this check were had."""
+    if layouts == 0:
+        return "no new layout"
+    return f"{layouts} new layout{'s' if layouts != 1 else ''}: {sources.describe()}"
 
 
 def layout_at(run: RunData, t_ns: int) -> ObstacleLayout | None:
@@ -427,7 +434,8 @@ def check_decisions(run: RunData, controllers: ControllerCache) -> Check:
         return Check("decisions", Status.SKIP, "the log holds no decisions")
     findings: list[Finding] = []
     ties: list[int] = []
-    before = controllers.syntheses
+    before = controllers.synthesizer.sources.copy()
+    layouts_before = controllers.syntheses
     boundary: list[int] = []
     for d, got, controller, previous in _recomputed(run, controllers):
         if isinstance(got, str) or controller is None:
@@ -449,11 +457,14 @@ def check_decisions(run: RunData, controllers: ControllerCache) -> Check:
         if tie:
             ties.append(d.t_ns)
     n = len(run.decisions)
-    synth = controllers.syntheses - before
+    sources = controllers.synthesizer.sources.minus(before)
+    layouts = controllers.syntheses - layouts_before
     metrics = {
         "decisions": n,
         "mismatches": len(findings),
-        "syntheses": synth,
+        "syntheses": sources.solved,
+        "controllers_from_store": sources.store,
+        "new_layouts": layouts,
         "cost_ties": len(ties),
         "cost_tie_times_ns": ties,
         "boundary_decisions": len(boundary),
@@ -483,7 +494,7 @@ def check_decisions(run: RunData, controllers: ControllerCache) -> Check:
     return Check(
         "decisions",
         Status.PASS,
-        f"{n} decisions reproduced, every field consistent ({synth} new syntheses){tie_note}",
+        f"{n} decisions reproduced, every field consistent ({_made(layouts, sources)}){tie_note}",
         (),
         metrics,
     )

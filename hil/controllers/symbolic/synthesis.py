@@ -62,6 +62,44 @@ _MEMO: OrderedDict[str, Controller] = OrderedDict()
 _MEMO_LOCK = threading.Lock()
 
 
+@dataclass(slots=True)
+class ControllerSources:
+    """Where a synthesizer's controllers came from, counted per request.
+
+    Attributes:
+        solved: Solved here (the fixed point ran).
+        store: Read from the solved-controller store on disk.
+        memory: Reused from this process's memo.
+    """
+
+    solved: int = 0
+    store: int = 0
+    memory: int = 0
+
+    def total(self) -> int:
+        """Return the number of controllers handed out."""
+        return self.solved + self.store + self.memory
+
+    def minus(self, before: ControllerSources) -> ControllerSources:
+        """Return the counts since `before` (a copy taken earlier)."""
+        return ControllerSources(
+            self.solved - before.solved, self.store - before.store, self.memory - before.memory
+        )
+
+    def copy(self) -> ControllerSources:
+        """Return a snapshot of the counts."""
+        return ControllerSources(self.solved, self.store, self.memory)
+
+    def describe(self) -> str:
+        """Return the counts as text, e.g. ``2 solved, 1 from the store``."""
+        parts = [f"{self.solved} solved"]
+        if self.store:
+            parts.append(f"{self.store} from the store")
+        if self.memory:
+            parts.append(f"{self.memory} from memory")
+        return ", ".join(parts)
+
+
 @dataclass(frozen=True, slots=True)
 class Watch:
     """A state whose controller a solve hands out as soon as it covers it.
@@ -163,6 +201,7 @@ class Synthesizer:
         self._memo = memo and not trace_memory
         self._store = ControllerStore.default(cache_dir) if use_cache else None
         self._writes: list[threading.Thread] = []
+        self.sources = ControllerSources()
         succ = tables.succ
         self._reach = np.ascontiguousarray(
             np.stack([succ[..., 0].min(axis=0), succ[..., 1].max(axis=0)], axis=-1).astype(np.int32)
@@ -274,11 +313,14 @@ class Synthesizer:
                 controller = _MEMO.get(key)
                 if controller is not None:
                     _MEMO.move_to_end(key)
+                    self.sources.memory += 1
         if controller is None and store is not None:
             controller = self._load(store, key, target, obstacles, int(at_rest.sum()))
             if controller is not None:
+                self.sources.store += 1
                 self._remember(key, controller)
         if controller is None:
+            self.sources.solved += 1
             if self._trace:
                 controller = self._solve_traced(free, target, obstacles, int(at_rest.sum()), start)
             else:

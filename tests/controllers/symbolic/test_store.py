@@ -6,6 +6,7 @@ import hashlib
 import multiprocessing
 import os
 import struct
+from collections import OrderedDict
 from pathlib import Path
 
 import numpy as np
@@ -82,6 +83,27 @@ def test_a_second_solve_reads_the_first_from_disk(
     with pytest.raises(AssertionError, match="fixed point ran"):
         Synthesizer(tables, memo=False).solve_problem(moved)
     assert _files(cache_dir) == [path]
+
+
+def test_the_synthesizer_counts_where_each_controller_came_from(
+    cache_dir: Path, problem: SymbolicProblem, tables: Tables, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(synthesis_module, "_MEMO", OrderedDict())  # no other test's solves
+    synthesizer = Synthesizer(tables)
+    synthesizer.solve_problem(problem)
+    synthesizer.wait_stored()
+    synthesizer.solve_problem(problem)  # the process's memo
+    s = synthesizer.sources
+    assert (s.solved, s.store, s.memory) == (1, 0, 1)
+    fresh = Synthesizer(tables, memo=False)
+    fresh.solve_problem(problem)
+    assert (fresh.sources.solved, fresh.sources.store, fresh.sources.memory) == (0, 1, 0)
+    assert fresh.sources.describe() == "0 solved, 1 from the store"
+    before = s.copy()
+    moved = problem.with_obstacles((problem.obstacles[0].translate(-0.3, 0.0),))
+    synthesizer.solve_problem(moved)
+    since = synthesizer.sources.minus(before)
+    assert (since.solved, since.store, since.memory, since.total()) == (1, 0, 0, 1)
 
 
 def _damaged(data: bytes, how: str) -> bytes:
