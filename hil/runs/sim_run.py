@@ -123,8 +123,10 @@ class RecordingSolver:
 
     The resynthesizer numbers its syntheses 1, 2, ... in call order, failures included;
     this counts the same way. Every call synthesizes (a re-synthesis timer must cost what
-    it costs on the vessel); consecutive versions for the same layout then keep the first
-    controller object (the same layout gives the same tables), so memory stays bounded.
+    it costs on the vessel); every version of one layout then keeps the first controller
+    object for it, so memory grows with the distinct layouts, not with the versions (an
+    obstacle going back and forth revisits a few layouts in hundreds of versions, and each
+    paper-grid controller read back from the store is a new object of about 150 MB).
 
     Args:
         solver: The solver to wrap.
@@ -133,17 +135,14 @@ class RecordingSolver:
     def __init__(self, solver: LayoutSolver) -> None:
         self._solver = solver
         self._calls = 0
-        self._last: tuple[tuple[object, ...], SymbolicAdapter] | None = None
+        self._by_layout: dict[tuple[object, ...], SymbolicAdapter] = {}
         self.controllers: dict[int, Controller] = {}
 
     def __call__(self, layout: ObstacleLayout) -> SymbolicAdapter:
         """Solve `layout` and remember the controller under its version."""
         self._calls += 1
-        adapter = self._solver(layout)
-        if self._last is not None and self._last[0] == layout.obstacles:
-            adapter = self._last[1]
-        else:
-            self._last = (layout.obstacles, adapter)
+        solved = self._solver(layout)
+        adapter = self._by_layout.setdefault(layout.obstacles, solved)
         self.controllers[self._calls] = adapter.controller
         return adapter
 
