@@ -37,7 +37,7 @@ class ControllerCache:
         self.scenario = scenario
         self._solver = LayoutSolver(scenario, synthesizer_for(scenario, cache_dir))
         self._done: dict[tuple[Rect, ...], SymbolicAdapter | NoWinningSetError] = {}
-        self.syntheses = 0
+        self.layouts = 0
 
     @property
     def synthesizer(self) -> Synthesizer:
@@ -52,7 +52,7 @@ class ControllerCache:
         """
         got = self._done.get(layout.obstacles)
         if got is None:
-            self.syntheses += 1
+            self.layouts += 1
             try:
                 got = self._solver(layout)
             except NoWinningSetError as err:

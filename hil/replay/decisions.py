@@ -435,7 +435,7 @@ def check_decisions(run: RunData, controllers: ControllerCache) -> Check:
     findings: list[Finding] = []
     ties: list[int] = []
     before = controllers.synthesizer.sources.copy()
-    layouts_before = controllers.syntheses
+    layouts_before = controllers.layouts
     boundary: list[int] = []
     for d, got, controller, previous in _recomputed(run, controllers):
         if isinstance(got, str) or controller is None:
@@ -458,7 +458,7 @@ def check_decisions(run: RunData, controllers: ControllerCache) -> Check:
             ties.append(d.t_ns)
     n = len(run.decisions)
     sources = controllers.synthesizer.sources.minus(before)
-    layouts = controllers.syntheses - layouts_before
+    layouts = controllers.layouts - layouts_before
     metrics = {
         "decisions": n,
         "mismatches": len(findings),

@@ -88,7 +88,7 @@ class ControllerSources:
 
     def copy(self) -> ControllerSources:
         """Return a snapshot of the counts."""
-        return ControllerSources(self.solved, self.store, self.memory)
+        return replace(self)
 
     def describe(self) -> str:
         """Return the counts as text, e.g. ``2 solved, 1 from the store``."""
