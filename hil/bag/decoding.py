@@ -129,7 +129,15 @@ def _decision(msg: Any) -> Decision:
         scenario_hash=str(msg.scenario_hash),
         reference_index=int(msg.reference_index),
         first=bool(msg.first),
+        report_age_s=_report_age(msg),
+        report_t_ns=int(getattr(msg, "report_t_ns", -1)),
     )
+
+
+def _report_age(msg: Any) -> float | None:
+    """Return a decision's report age (s); None from a log written before it was recorded."""
+    age = float(getattr(msg, "report_age_s", 0.0))
+    return age if age > 0.0 else None
 
 
 def _rectangle(msg: Any) -> Rect:

@@ -259,6 +259,8 @@ def decision_msg(record: Decision) -> Any:
         scenario_hash=record.scenario_hash,
         reference_index=record.reference_index,
         first=record.first,
+        report_age_s=0.0 if record.report_age_s is None else record.report_age_s,
+        report_t_ns=record.report_t_ns,
     )
 
 

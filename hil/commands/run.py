@@ -47,6 +47,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="give up after this many simulated seconds")
     parser.add_argument("--rerun", nargs="?", const="spawn", default=None, metavar="RRD",
                         help="stream the run live to Rerun: a spawned viewer, or into RRD")
+    parser.add_argument("--synthesis-latency", type=positive_seconds, default=None,
+                        metavar="S", help="model a slower solver: each synthesis takes S "
+                        "simulated seconds, one at a time, as beside the vessel's loop "
+                        "(default: at once)")
     parser.add_argument("--json", action="store_true",
                         help="end with the summary as one JSON object on the last line")
 
@@ -95,7 +99,8 @@ def run(args: argparse.Namespace) -> int:
         stamp = time.strftime("%Y%m%d-%H%M%S")
         out = args.out or Path("runs") / f"{name}-seed{args.seed}-{stamp}"
     spec = SimRunSpec(scenario=args.scenario, seed=args.seed, start=args.start, out_dir=out,
-                      loop=LoopConfig(max_duration_s=args.max_duration))
+                      loop=LoopConfig(max_duration_s=args.max_duration),
+                      synthesis_latency_s=args.synthesis_latency or 0.0)
     live = None if args.rerun is None else _live_rerun(args.rerun)
     try:
         with console.status(f"docking in the {name} scenario (seed {args.seed})..."):

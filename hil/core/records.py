@@ -129,6 +129,13 @@ class Decision:
             estimated velocity); -1 when unknown.
         first: A first decision (start, or after a stop or hold): every candidate was
             budgeted as a reference change and the vessel may have been moving.
+        report_age_s: The obstacle report age its controller was solved for (s): moving
+            obstacles grown for it, the decision relying on a report at most this old;
+            None in logs written before it was recorded (the scenario's
+            ``max_report_age_s``).
+        report_t_ns: Stamp of the obstacle report the decision relied on (ns): its
+            controller's layout, or a renewal of the same shapes; -1 unknown (logs
+            written before it was recorded).
     """
 
     t_ns: int
@@ -144,9 +151,21 @@ class Decision:
     scenario_hash: str
     reference_index: int = -1
     first: bool = False
+    report_age_s: float | None = None
+    report_t_ns: int = -1
 
     def __post_init__(self) -> None:
         _check_time("decision", self.t_ns)
+        if self.report_age_s is not None and not (
+            math.isfinite(self.report_age_s) and self.report_age_s > 0.0
+        ):
+            raise RecordValueError(
+                f"decision report_age_s must be finite and > 0 s, got {self.report_age_s!r}"
+            )
+        if self.report_t_ns < -1:
+            raise RecordValueError(
+                f"decision report_t_ns must be a stamp or -1 (unknown), got {self.report_t_ns!r}"
+            )
         _check_finite("decision state", self.state)
         _check_finite("decision chosen input", self.chosen_input)
         for row in self.safe_inputs:
@@ -185,6 +204,8 @@ class Decision:
         chosen_input: ArrayLike | None = None,
         reference_index: int = -1,
         first: bool = False,
+        report_age_s: float | None = None,
+        report_t_ns: int = -1,
     ) -> Decision:
         """Build a decision from numpy arrays.
 
@@ -203,6 +224,8 @@ class Decision:
                 when omitted (zeros when `chosen_index` is -1).
             reference_index: Input-grid index of the reference in force, -1 unknown.
             first: Whether it was a first decision.
+            report_age_s: The report age its controller was solved for (s).
+            report_t_ns: Stamp of the obstacle report it relied on (ns), -1 unknown.
 
         Returns:
             The decision.
@@ -239,6 +262,8 @@ class Decision:
             scenario_hash=str(scenario_hash),
             reference_index=int(reference_index),
             first=bool(first),
+            report_age_s=None if report_age_s is None else float(report_age_s),
+            report_t_ns=int(report_t_ns),
         )
 
     def safe_inputs_array(self) -> FloatArray:

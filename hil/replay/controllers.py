@@ -24,7 +24,7 @@ class ScenarioMismatchError(ReplayError, ValueError):
 
 
 class ControllerCache:
-    """One controller per distinct obstacle layout, synthesized with the current code.
+    """One controller per distinct obstacle layout and report age, with the current code.
 
     Callable as a solver for :class:`hil.runtime.resynthesis.Resynthesizer`.
 
@@ -36,7 +36,7 @@ class ControllerCache:
     def __init__(self, scenario: Scenario, cache_dir: Path | None = None) -> None:
         self.scenario = scenario
         self._solver = LayoutSolver(scenario, synthesizer_for(scenario, cache_dir))
-        self._done: dict[tuple[Rect, ...], SymbolicAdapter | NoWinningSetError] = {}
+        self._done: dict[tuple[tuple[Rect, ...], float], SymbolicAdapter | NoWinningSetError] = {}
         self.layouts = 0
 
     @property
@@ -44,20 +44,27 @@ class ControllerCache:
         """The synthesizer holding the scenario grid's abstraction tables."""
         return self._solver.synthesizer
 
-    def __call__(self, layout: ObstacleLayout) -> SymbolicAdapter:
-        """Return the controller for `layout`.
+    def __call__(
+        self, layout: ObstacleLayout, report_age_s: float | None = None
+    ) -> SymbolicAdapter:
+        """Return the controller for `layout`, moving obstacles grown for `report_age_s`.
+
+        None: the scenario's ``max_report_age_s`` (a decision of a log written before
+        the age was recorded).
 
         Raises:
             NoWinningSetError: The layout leaves no winning set.
         """
-        got = self._done.get(layout.obstacles)
+        age = self.scenario.tracking.max_report_age_s if report_age_s is None else report_age_s
+        key = (layout.obstacles, age)
+        got = self._done.get(key)
         if got is None:
             self.layouts += 1
             try:
-                got = self._solver(layout)
+                got = self._solver(layout, age)
             except NoWinningSetError as err:
                 got = err
-            self._done[layout.obstacles] = got
+            self._done[key] = got
         if isinstance(got, NoWinningSetError):
             raise got
         return got

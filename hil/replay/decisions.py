@@ -49,6 +49,7 @@ from hil.core.samples import ObstacleLayout
 from hil.replay.controllers import ControllerCache
 from hil.replay.regression import Check, Finding, Status, time_s
 from hil.runtime.assembly import SymbolicAdapter, select_index
+from hil.runtime.settings import NS_PER_S
 from hil.runtime.stack import SymbolicController
 
 FloatArray = NDArray[np.float64]
@@ -369,20 +370,51 @@ def decision_controllers(
 ) -> Iterator[tuple[Decision, SymbolicAdapter | str]]:
     """Yield each recorded decision with the controller of its recorded layout.
 
-    The controller is the current code's synthesis for the layout in force when the
-    decision's controller version was swapped in; instead of it, one line saying why
-    there is none (no layout recorded, no winning set now).
+    The controller is the current code's synthesis for the obstacle report the decision
+    relied on (the recorded one of its stamp; a report from before the run, stamped
+    earlier, is recorded when first seen) and the report age it records; a log without
+    them gives the layout in force when the decision's controller version was swapped
+    in and the scenario's age. Instead of it, one line saying why there is none (no
+    layout recorded, no winning set now).
     """
     ready = _version_times(run)
+    first = min((layout.t_ns for layout in run.layouts), default=0)
     for d in run.decisions:
-        layout = layout_at(run, ready.get(d.controller_version, d.t_ns))
+        if d.report_t_ns >= 0:
+            layout = layout_at(run, max(d.report_t_ns, first))
+        else:
+            layout = layout_at(run, ready.get(d.controller_version, d.t_ns))
         if layout is None:
             yield d, "no obstacle layout recorded before this decision"
             continue
         try:
-            yield d, controllers(layout)
+            yield d, controllers(layout, d.report_age_s)
         except NoWinningSetError as err:
             yield d, f"recorded a decision, but now: {err}"
+
+
+def relied_on_stale_report(d: Decision) -> Finding | None:
+    """Return a finding when `d` relied on an obstacle report older than it was solved for.
+
+    With obstacles that move, a decision's controller avoids where they may be up to its
+    ``report_age_s`` (+ tau + late) after the report it relied on (``report_t_ns``); a
+    decision taken later than that left what it assumed. The runtime refuses such a
+    decision (``obstacles_stale``); one in a log is a regression. Compared exactly as the
+    runtime does ((t - stamp) / 1e9 s against the age: integer nanoseconds, one division,
+    the same on every machine). A log without the two fields is not judged here.
+    """
+    if d.report_age_s is None or d.report_t_ns < 0:
+        return None
+    age_s = (d.t_ns - d.report_t_ns) / NS_PER_S
+    if age_s <= d.report_age_s:
+        return None
+    return Finding(
+        f"decided on an obstacle report {age_s:.3f} s old (t={d.report_t_ns} ns), older than "
+        f"the {d.report_age_s:g} s its controller was solved for: the moving obstacles may "
+        "have left what it avoided",
+        d.t_ns,
+        {"fields": ["report_t_ns"], "report_age_s": d.report_age_s, "age_s": age_s},
+    )
 
 
 def replayed_decisions(run: RunData, controllers: ControllerCache) -> list[Decision]:
@@ -437,7 +469,10 @@ def check_decisions(run: RunData, controllers: ControllerCache) -> Check:
     before = controllers.synthesizer.sources.copy()
     layouts_before = controllers.layouts
     boundary: list[int] = []
+    tracks = controllers.scenario.tracks_obstacles
     for d, got, controller, previous in _recomputed(run, controllers):
+        if tracks and (stale := relied_on_stale_report(d)) is not None:
+            findings.append(stale)
         if isinstance(got, str) or controller is None:
             extra = [text for _, text in consistency(d, None)]
             findings.append(Finding("; ".join([str(got), *extra]), d.t_ns))

@@ -20,6 +20,8 @@ change of the code moves (millimetres; a cell is 5 cm).
 from __future__ import annotations
 
 import contextlib
+import json
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -40,7 +42,7 @@ from hil.replay.tracking_checks import tracking_findings
 from hil.runs.sim_run import build_runtime
 from hil.runtime.events import EventCode
 from hil.runtime.loop import Mode, World
-from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer
+from hil.runtime.resynthesis import ResynthesisMode
 from hil.runtime.settings import LoopConfig
 from hil.runtime.stats import RunStats
 from hil.runtime.trace import MemoryLog
@@ -152,6 +154,22 @@ class Rerun:
         return Series(t, v)
 
 
+def recorded_latency_s(run: RunData) -> float:
+    """Return the simulated synthesis latency a sim run was recorded with (s; 0: none).
+
+    From the run specification in the metadata (``SimRunSpec.synthesis_latency_s``); a
+    log without one, or a damaged one, had none.
+    """
+    info = run.info.run
+    if info is None or not info.run_spec:
+        return 0.0
+    try:
+        latency = float(json.loads(info.run_spec).get("synthesis_latency_s", 0.0))
+    except (ValueError, AttributeError, TypeError):
+        return 0.0
+    return latency if math.isfinite(latency) and latency > 0.0 else 0.0
+
+
 def rerun_stack(
     run: RunData,
     controllers: ControllerCache,
@@ -170,6 +188,8 @@ def rerun_stack(
     """
     world = LogWorld(run, options.log)
     log = MemoryLog()
+    # The same composition with the cached solver (one synthesis per layout and age),
+    # each controller as late as the recording's simulated solver made it.
     runtime = build_runtime(
         controllers.scenario,
         World(world.clock, world.pose, world.imu, world.obstacles, world.thrusters),
@@ -177,9 +197,9 @@ def rerun_stack(
         loop,
         controllers.synthesizer,
         ResynthesisMode.INLINE,
+        solver=controllers,
+        synthesis_latency_s=recorded_latency_s(run),
     )
-    # The same composition, with the cached solver: identical controllers, one synthesis.
-    runtime.resynthesizer = Resynthesizer(controllers, ResynthesisMode.INLINE)
     # A stop from outside (SIGINT/SIGTERM on the vessel or at `hil run`) is part of the
     # recording, not of the stack: it is requested again at the tick that recorded it.
     stop = recorded_stop(run)

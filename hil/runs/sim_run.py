@@ -40,7 +40,8 @@ from hil.runtime.assembly import (
     select_index,
 )
 from hil.runtime.loop import Runtime, World
-from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer
+from hil.runtime.report_age import ReportAgeBudget
+from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer, Solve
 from hil.runtime.settings import LoopConfig
 from hil.runtime.signals import stop_on_signals
 from hil.runtime.stack import RunLog, SymbolicController
@@ -75,6 +76,9 @@ class SimRunSpec:
             scenario's deviation budget was measured with).
         load: Environmental load b(t) on the simulated vessel (its Gauss-Markov noise
             seeded by the load's own seed); None: calm water, as in the tank.
+        synthesis_latency_s: Each synthesis takes this long on the simulated clock, one
+            at a time, as a slower solver beside the loop would (s; 0: at once). The
+            simulation of a vessel whose solver is slower than its obstacle reports.
     """
 
     scenario: str = "paper"
@@ -89,6 +93,7 @@ class SimRunSpec:
     cache_dir: Path | None = None
     gains: PidGains | None = None
     load: EnvironmentalLoad | None = None
+    synthesis_latency_s: float = 0.0
 
 
 def default_start(scenario: Scenario) -> tuple[float, float, float]:
@@ -138,11 +143,11 @@ class RecordingSolver:
         self._by_layout: dict[tuple[object, ...], SymbolicAdapter] = {}
         self.controllers: dict[int, Controller] = {}
 
-    def __call__(self, layout: ObstacleLayout) -> SymbolicAdapter:
-        """Solve `layout` and remember the controller under its version."""
+    def __call__(self, layout: ObstacleLayout, report_age_s: float) -> SymbolicAdapter:
+        """Solve `layout` for `report_age_s` and remember the controller under its version."""
         self._calls += 1
-        solved = self._solver(layout)
-        adapter = self._by_layout.setdefault(layout.obstacles, solved)
+        solved = self._solver(layout, report_age_s)
+        adapter = self._by_layout.setdefault((layout.obstacles, report_age_s), solved)
         self.controllers[self._calls] = adapter.controller
         return adapter
 
@@ -151,8 +156,9 @@ def build_runtime(
     scenario: Scenario, world: World, log: RunLog, loop: LoopConfig,
     synthesizer: Synthesizer, mode: ResynthesisMode, *,
     select: Select = select_index, start_nu: FloatArray | None = None,
-    solver: Callable[[ObstacleLayout], SymbolicController] | None = None,
+    solver: Solve[SymbolicController] | None = None,
     gains: PidGains | None = None,
+    synthesis_latency_s: float = 0.0,
 ) -> Runtime:
     """Compose the full stack for `scenario` against `world`.
 
@@ -165,20 +171,29 @@ def build_runtime(
         mode: Where re-synthesis runs.
         select: Choice among the safe inputs; the paper's cost J by default.
         start_nu: Body velocity (3,) the EKF starts from; None at rest.
-        solver: Layout -> controller; a :class:`LayoutSolver` if None.
+        solver: (Layout, report age) -> controller; a :class:`LayoutSolver` if None.
         gains: Velocity-PID gains; None: the shipped ones.
+        synthesis_latency_s: Inline: each synthesis takes this long on the world's clock.
     """
     layout_solver = LayoutSolver(scenario, synthesizer)
     solve = solver if solver is not None else layout_solver
     # In a thread a new layout's controller is put in force as soon as it covers the
     # vessel's state (the solve's early stop), before the full solve ends.
     resynthesizer: Resynthesizer[SymbolicController] = Resynthesizer(
-        solve, mode, stages=layout_solver.stages if solver is None else None)
+        solve, mode, stages=layout_solver.stages if solver is None else None,
+        latency_s=synthesis_latency_s, clock=world.clock.now_ns)
     return Runtime(world, EkfObserver(start_nu=start_nu), low_level_for(loop.loop_hz, gains),
                    resynthesizer, select, log, loop, scenario_hash(scenario),
                    estimation_position_m=scenario.transient.estimation_position_m,
-                   obstacle_max_age_s=(scenario.tracking.max_report_age_s
-                                       if scenario.tracks_obstacles else None))
+                   report_ages=report_ages_of(scenario))
+
+
+def report_ages_of(scenario: Scenario) -> ReportAgeBudget:
+    """Return the report-age budget of `scenario`'s ``[obstacle_motion]`` (stated or measured)."""
+    tracking = scenario.tracking
+    return ReportAgeBudget(
+        tracking.max_report_age_s, scenario.tracks_obstacles, tracking.measures_report_age
+    )
 
 
 def sim_config(spec: SimRunSpec, scenario: Scenario) -> SimConfig:
@@ -296,6 +311,7 @@ def simulate(
         runtime = build_runtime(
             scenario, world, log, spec.loop, synthesizer, ResynthesisMode.INLINE,
             select=select, solver=solver, gains=spec.gains,
+            synthesis_latency_s=spec.synthesis_latency_s,
             start_nu=None if spec.start_velocity is None else np.array(spec.start_velocity))
         signals = stop_on_signals(runtime.request_stop) if handle_signals else nullcontext()
         with signals:
@@ -349,6 +365,7 @@ def spec_to_json(spec: SimRunSpec) -> dict[str, Any]:
         "max_duration_s": spec.loop.max_duration_s,
         **({} if spec.gains is None else {"gains": to_jsonable(spec.gains)}),
         **({} if spec.load is None else {"load": to_jsonable(spec.load)}),
+        **({"synthesis_latency_s": spec.synthesis_latency_s} if spec.synthesis_latency_s else {}),
     }
 
 
@@ -383,6 +400,7 @@ def spec_from_json(data: dict[str, Any]) -> SimRunSpec:
             gains=None if data.get("gains") is None else from_jsonable(PidGains, data["gains"]),
             load=None if data.get("load") is None
             else from_jsonable(EnvironmentalLoad, data["load"]),
+            synthesis_latency_s=float(data.get("synthesis_latency_s", 0.0)),
         )
     except (KeyError, TypeError, IndexError) as err:
         raise ValueError(f"malformed run specification {data!r}: {err!r}") from err

@@ -98,6 +98,10 @@ class RunSummary:
             scheduled motions); 0 when every obstacle stayed put.
         obstacle_stale_stops: Stops for an obstacle report too old to decide on
             (``obstacles_stale``).
+        report_age_relied_s: With obstacles that move: the oldest a relied-on obstacle
+            report was when a fresher one took over (s; 0: none measured).
+        report_age_solved_s: The largest report age a controller in force was solved
+            for (s; 0: obstacles fixed).
     """
 
     scenario: str
@@ -129,6 +133,8 @@ class RunSummary:
     worst_successor_miss_m: float = 0.0
     moving_obstacles: int = 0
     obstacle_stale_stops: int = 0
+    report_age_relied_s: float = 0.0
+    report_age_solved_s: float = 0.0
 
     def to_json(self) -> str:
         """Return the summary as one line of JSON (NaN and inf as null)."""
@@ -171,6 +177,9 @@ class RunSummary:
         if self.moving_obstacles or self.obstacle_stale_stops:
             table.add_row("moving obstacles / stale-report stops",
                           f"{self.moving_obstacles} / {self.obstacle_stale_stops}", "-")
+        if self.report_age_solved_s:
+            table.add_row("obstacle report age relied on / solved for (max)",
+                          f"{self.report_age_relied_s:.2f} / {self.report_age_solved_s:g} s", "-")
         table.add_row(
             "synthesis time mean / max",
             f"{self.synthesis_mean_s * 1e3:.1f} / {self.synthesis_max_s * 1e3:.1f} ms",
@@ -273,6 +282,8 @@ def summarize_run(
         worst_successor_miss_m=stats.worst_successor_miss_m,
         moving_obstacles=moving,
         obstacle_stale_stops=stats.obstacle_stale_stops,
+        report_age_relied_s=stats.report_age_relied_s,
+        report_age_solved_s=stats.report_age_solved_s,
     )
 
 

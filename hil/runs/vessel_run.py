@@ -155,7 +155,7 @@ def run_on_ros(config: VesselConfig, out_dir: Path | None = None,
         early: list[str] = []
         with stop_on_signals(early.append):
             warm_up_kernels(config.loop.loop_hz)
-            runtime.resynthesizer.submit(obstacles.latest())
+            runtime.resynthesizer.submit(obstacles.latest(), runtime.report_ages.next_s())
             runtime.resynthesizer.wait_idle()
         try:
             stopped = early[0] if early else _wait_for_pose(

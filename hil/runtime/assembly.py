@@ -217,18 +217,22 @@ class LayoutSolver:
     scenario: Scenario
     synthesizer: Synthesizer
 
-    def __call__(self, layout: ObstacleLayout) -> SymbolicAdapter:
-        """Return the controller for `layout`.
+    def __call__(
+        self, layout: ObstacleLayout, report_age_s: float | None = None
+    ) -> SymbolicAdapter:
+        """Return the controller for `layout`, its moving obstacles grown for `report_age_s`.
+
+        None: the scenario's ``max_report_age_s``.
 
         Raises:
             NoWinningSetError: No cell outside the target is winning.
         """
-        controller = self.synthesizer.solve_problem(self._problem(layout))
+        controller = self.synthesizer.solve_problem(self._problem(layout, report_age_s))
         self._require_winning(controller, layout)
         return SymbolicAdapter(controller)
 
     def stages(
-        self, layout: ObstacleLayout, vessel: VesselState
+        self, layout: ObstacleLayout, report_age_s: float, vessel: VesselState
     ) -> Iterator[tuple[SymbolicAdapter, bool]]:
         """Yield (controller, complete): first one covering `vessel` if it comes early.
 
@@ -238,7 +242,7 @@ class LayoutSolver:
         Raises:
             NoWinningSetError: No cell outside the target is winning (full solve).
         """
-        problem = self._problem(layout)
+        problem = self._problem(layout, report_age_s)
         cell = problem.grid.cell_of(vessel.eta)
         watch = None if cell is None else Watch(cell, vessel.reference)
         for controller in self.synthesizer.solve_stages(problem, watch):
@@ -247,8 +251,15 @@ class LayoutSolver:
                 self._require_winning(controller, layout)
             yield SymbolicAdapter(controller), complete
 
-    def _problem(self, layout: ObstacleLayout) -> SymbolicProblem:
+    def _problem(self, layout: ObstacleLayout, report_age_s: float | None) -> SymbolicProblem:
+        """Return the problem of `layout`: obstacles that move grown over `report_age_s`.
+
+        Fixed obstacles are not grown, so the age changes nothing for them (the same
+        masks: the memo and the store find the same controller).
+        """
         scenario = self.scenario.with_obstacles(obstacles_from_layout(self.scenario, layout))
+        if report_age_s is not None:
+            scenario = scenario.with_report_age(report_age_s)
         return SymbolicProblem.from_scenario(scenario)
 
     @staticmethod

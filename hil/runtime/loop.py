@@ -34,6 +34,7 @@ from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterComm
 from hil.core.transient import START_PERIODS
 from hil.runtime.events import EventCode
 from hil.runtime.monitor import Monitor, Violation
+from hil.runtime.report_age import ReportAgeBudget
 from hil.runtime.resynthesis import Resynthesizer, SynthesisResult, VesselState
 from hil.runtime.settings import NS_PER_S, LoopConfig
 from hil.runtime.stack import LowLevel, Observer, RunLog, SymbolicController
@@ -103,12 +104,14 @@ class Runtime:
         estimation_position_m: The transient budget's bound on the estimate's position
             error (m), the tolerance of the runtime monitor's tube judge
             (:mod:`hil.runtime.monitor`).
-        obstacle_max_age_s: With obstacles that move, the oldest their report may be
-            when a decision is taken (s; the scenario's ``max_report_age_s``, which the
-            synthesis budgeted their motion for): a fresher report of moved obstacles is
-            re-synthesized, one of the same shapes renews the report time the controller
-            relies on (no synthesis), and an older one stops the vessel
-            (``obstacles_stale``). None: obstacles are fixed between layouts.
+        report_ages: The report age each controller is solved for
+            (:class:`~hil.runtime.report_age.ReportAgeBudget`: the scenario's
+            ``max_report_age_s``, or measured). With obstacles that move, a decision may
+            rely on its controller's report while it is at most that old: a fresher report
+            of moved obstacles is re-synthesized, one of the same shapes renews the report
+            time the controller relies on (no synthesis), and an older one stops the
+            vessel (``obstacles_stale``). None: obstacles are fixed between layouts, solved
+            for a report age of 1 s (which grows nothing).
     """
 
     def __init__(
@@ -122,7 +125,7 @@ class Runtime:
         config: LoopConfig | None = None,
         scenario_hash: str = "",
         estimation_position_m: float = 0.0,
-        obstacle_max_age_s: float | None = None,
+        report_ages: ReportAgeBudget | None = None,
     ) -> None:
         self.world = world
         self.observer = observer
@@ -132,14 +135,16 @@ class Runtime:
         self.log = log
         self.config = config or LoopConfig()
         self.scenario_hash = scenario_hash
-        self.obstacle_max_age_s = obstacle_max_age_s
+        self.report_ages = report_ages or ReportAgeBudget(1.0, tracks=False)
         self._obstacles_stale = False
         self.stats = RunStats()
         self.monitor = Monitor(estimation_position_m, 1.0 / self.config.loop_hz)
         self.mode = Mode.WAITING
         self.controller: SymbolicController | None = None
         self.controller_version = 0
+        # The report the controller in force relies on, and the age it was solved for.
         self._controller_layout: ObstacleLayout | None = None
+        self._controller_age_s = self.report_ages.stated_s
         # An early controller of the synthesis still running (it covers the state the
         # vessel was in at submission and every state of a lower value), with its
         # version and layout; taken for a decision only where it covers the state.
@@ -308,10 +313,12 @@ class Runtime:
         # staleness check measures from) without a synthesis, the controller being the same.
         renewed = (
             not changed
-            and self.obstacle_max_age_s is not None
+            and self.report_ages.tracks
             and submitted is not None
             and layout.t_ns > submitted.t_ns
         )
+        if (changed or renewed) and self.report_ages.tracks:
+            self.report_ages.reported(layout.t_ns if layout.t_ns >= self._start_ns else t_ns)
         if changed or renewed:
             # Every report taken in is recorded, a renewal too: a replay re-runs the stack
             # on this stream and must see the report time each decision relied on. A
@@ -321,7 +328,7 @@ class Runtime:
                 layout if layout.t_ns >= self._start_ns else replace(layout, t_ns=t_ns)
             )
         if renewed:
-            self._renew(layout)
+            self._renew(layout, t_ns)
         period = self.config.resynthesis_period_s
         timer_due = (
             period is not None
@@ -341,7 +348,7 @@ class Runtime:
             return
         self._submitted_layout = layout
         self._last_submit_ns = t_ns
-        self.resynthesizer.submit(layout, self._vessel_state())
+        self.resynthesizer.submit(layout, self.report_ages.next_s(), self._vessel_state())
 
     def _vessel_state(self) -> VesselState | None:
         """Return the state an early controller must cover: mid-run, the reference in force.
@@ -357,7 +364,7 @@ class Runtime:
             return None
         return VesselState(estimate[0].copy(), self._reference_index)
 
-    def _renew(self, layout: ObstacleLayout) -> None:
+    def _renew(self, layout: ObstacleLayout, t_ns: int) -> None:
         """Take a fresher report of the submitted shapes as the newest, without synthesis.
 
         The controller in force, when synthesized for the same shapes, now relies on this
@@ -367,31 +374,66 @@ class Runtime:
         self._submitted_layout = layout
         current = self._controller_layout
         if current is not None and current.obstacles == layout.obstacles:
-            self._controller_layout = layout
+            self._rely_on(layout, self._controller_age_s, t_ns)
+
+    def _rely_on(
+        self,
+        layout: ObstacleLayout,
+        report_age_s: float,
+        t_ns: int,
+        solved: ObstacleLayout | None = None,
+    ) -> None:
+        """Let decisions rely on `layout`'s report (solved for `report_age_s`) from `t_ns` on.
+
+        `solved`: the report a controller put in force now was solved from (`layout` is
+        a renewal of it, or itself); None for a renewal of the controller in force. The
+        latency of a controller put in force and the age the report relied on so far had
+        when this fresher one took over are what a measured report age is made of
+        (:class:`ReportAgeBudget`).
+        """
+        current = self._controller_layout
+        if solved is not None and (current is None or solved.obstacles != current.obstacles):
+            # Only a new layout's latency counts: the same shapes again (a timer's
+            # re-synthesis) are renewed by every report, whatever their solve took.
+            self.report_ages.in_force(solved.t_ns, t_ns)
+        if current is not None and layout.t_ns > current.t_ns:
+            self.report_ages.superseded(current.t_ns, t_ns)
+        self._controller_layout = layout
+        self._controller_age_s = report_age_s
+        if self.report_ages.tracks:
+            s = self.stats
+            s.report_age_relied_s = self.report_ages.largest_age_s
+            s.report_age_solved_s = max(s.report_age_solved_s, report_age_s)
 
     def _warn_if_stale_on_arrival(self, t_ns: int, version: int, seconds: float) -> None:
         """Say when a controller for moving obstacles arrives older than its report may be.
 
         Its decisions would all be refused (``obstacles_stale``) unless a fresher report
         of the same shapes renews it: with obstacles that keep moving, a synthesis slower
-        than ``max_report_age_s`` never yields a usable controller.
+        than the report age it was solved for never yields a usable controller.
         """
-        max_age = self.obstacle_max_age_s
+        max_age = self._controller_age_s
         layout = self._controller_layout
-        if max_age is None or layout is None:
+        if not self.report_ages.tracks or layout is None:
             return
         age_s = (t_ns - layout.t_ns) / NS_PER_S
         if age_s <= max_age:
             return
+        remedy = (
+            "the next layouts are solved for the age measured "
+            f"(now {self.report_ages.next_s():g} s)"
+            if self.report_ages.measured
+            else 'with obstacles that keep moving, set [obstacle_motion] report_age = "measured" '
+            "(or raise max_report_age_s above the synthesis time), or give the synthesis "
+            "more cores ([loop] synthesis_threads)"
+        )
         self._event(
             t_ns,
             EventLevel.WARN,
             EventCode.SYNTHESIS_OVERRUN,
             f"controller v{version} arrived {age_s:.2f} s after its obstacle report "
-            f"(synthesis {seconds:.2f} s), older than max_report_age_s = {max_age:g} s: "
-            "usable only once a fresher report of the same shapes renews it; with "
-            "obstacles that keep moving, raise [obstacle_motion] max_report_age_s above "
-            "the synthesis time or give the synthesis more cores ([loop] synthesis_threads)",
+            f"(synthesis {seconds:.2f} s), older than the {max_age:g} s it was solved for: "
+            f"usable only once a fresher report of the same shapes renews it; {remedy}",
         )
 
     def _swap_controller(self, t_ns: int) -> None:
@@ -415,7 +457,9 @@ class Runtime:
             self.controller_version = result.version
             # A fresher report of the same shapes may have come in while it was solved:
             # the controller relies on the newest (renewed) one.
-            self._controller_layout = self._renewed(result.layout)
+            self._rely_on(
+                self._renewed(result.layout), result.report_age_s, t_ns, solved=result.layout
+            )
             self._warn_if_stale_on_arrival(t_ns, result.version, result.seconds)
             self.stats.resyntheses += 1
             self.stats.synthesis_seconds.append(result.seconds)
@@ -467,7 +511,7 @@ class Runtime:
         self._in_force_early = True
         self.controller = early.controller
         self.controller_version = early.version
-        self._controller_layout = self._renewed(early.layout)
+        self._rely_on(self._renewed(early.layout), early.report_age_s, t_ns, solved=early.layout)
         self._warn_if_stale_on_arrival(t_ns, early.version, early.seconds)
         self.stats.early_controllers += 1
 
@@ -522,16 +566,16 @@ class Runtime:
     def _obstacles_fresh(self, t_ns: int) -> bool:
         """Return whether a decision may rely on the controller's obstacle report; else stop.
 
-        With obstacles that move, the synthesis avoided where they may be up to
-        ``obstacle_max_age_s`` + tau + late after their report; a decision later than
-        ``obstacle_max_age_s`` after it is not covered. Then the velocity reference goes to
+        With obstacles that move, the synthesis avoided where they may be up to A + tau
+        + late after their report (A: the report age the controller was solved for); a
+        decision later than A after it is not covered. Then the velocity reference goes to
         zero (``obstacles_stale``, once per episode) and the next decision, once a
         fresher report is in (renewing the controller's stamp, or its shapes' controller
         synthesized), is a first decision.
         """
-        max_age = self.obstacle_max_age_s
+        max_age = self._controller_age_s
         layout = self._controller_layout
-        if max_age is None or layout is None or self.controller is None:
+        if not self.report_ages.tracks or layout is None or self.controller is None:
             return True
         age_s = (t_ns - layout.t_ns) / NS_PER_S
         if age_s <= max_age:
@@ -676,6 +720,8 @@ class Runtime:
                 chosen_input=chosen,
                 reference_index=reference,
                 first=first,
+                report_age_s=self._controller_age_s,
+                report_t_ns=-1 if self._controller_layout is None else self._controller_layout.t_ns,
             )
         )
 

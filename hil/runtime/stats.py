@@ -21,7 +21,10 @@ class RunStats:
     time at which every tick started (for the period jitter). `tube_exits`,
     `successor_misses` and `value_not_decreasing` count the runtime monitor's
     violations (:mod:`hil.runtime.monitor`), the worst sizes in metres beside them;
-    `obstacle_stale_stops` the stops for an obstacle report too old to decide on.
+    `obstacle_stale_stops` the stops for an obstacle report too old to decide on;
+    with obstacles that move, `report_age_relied_s` the oldest a relied-on report was
+    when a fresher one took over and `report_age_solved_s` the largest report age a
+    controller in force was solved for (s; 0: none).
     """
 
     start_ns: int = 0
@@ -36,6 +39,8 @@ class RunStats:
     rejected_samples: int = 0
     pose_losses: int = 0
     obstacle_stale_stops: int = 0
+    report_age_relied_s: float = 0.0
+    report_age_solved_s: float = 0.0
     thruster_failures: int = 0
     not_winning_decisions: int = 0
     tube_exits: int = 0

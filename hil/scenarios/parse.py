@@ -31,6 +31,7 @@ from hil.core.transient import (
 )
 from hil.scenarios.errors import ScenarioError
 from hil.scenarios.scenario import (
+    REPORT_AGES,
     Hull,
     InputAxis,
     Obstacle,
@@ -185,7 +186,7 @@ def _obstacle_motion(data: dict[str, Any]) -> tuple[float, ObstacleTracking]:
     """
     raw = table(data, "obstacle_motion", required=False)
     where = "obstacle_motion."
-    _keys(raw, {"max_speed_mps", "max_report_age_s", "position_tolerance_m"}, where)
+    _keys(raw, {"max_speed_mps", "max_report_age_s", "position_tolerance_m", "report_age"}, where)
     speed = _at_least_zero(raw, "max_speed_mps", where, 0.0)
     default_age = ObstacleTracking().max_report_age_s
     age = number(raw, "max_report_age_s", where, default_age)
@@ -193,7 +194,15 @@ def _obstacle_motion(data: dict[str, Any]) -> tuple[float, ObstacleTracking]:
         raise ScenarioError(f"key {where}'max_report_age_s' must be > 0, got {age!r}")
     lag = _at_least_zero(raw, "position_tolerance_m", where,
                          ObstacleTracking().position_tolerance_m)
-    return speed, ObstacleTracking(max_report_age_s=age, position_tolerance_m=lag)
+    mode = raw.get("report_age", "stated")
+    if mode not in REPORT_AGES:
+        raise ScenarioError(
+            f"key {where}'report_age' must be one of {', '.join(map(repr, REPORT_AGES))}, "
+            f"got {mode!r}"
+        )
+    return speed, ObstacleTracking(
+        max_report_age_s=age, position_tolerance_m=lag, report_age=str(mode)
+    )
 
 
 _MOTION_KEYS = {"obstacle", "velocity_mps", "start_s", "stop_s"}

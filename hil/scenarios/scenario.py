@@ -112,6 +112,10 @@ class Target:
         return self.shape.inflate(-self.deflation_m)
 
 
+REPORT_AGES = ("stated", "measured")
+"""``[obstacle_motion] report_age``: the scenario's age, or the runtime's measurement."""
+
+
 @dataclass(frozen=True, slots=True)
 class ObstacleTracking:
     """What a decision may assume about obstacles that move (the ``[obstacle_motion]`` table).
@@ -124,15 +128,34 @@ class ObstacleTracking:
     stops the vessel until a fresher one (the runtime's ``obstacles_stale`` event).
 
     Attributes:
-        max_report_age_s: Oldest a tracked obstacle's report may be at a decision (s).
+        max_report_age_s: Oldest a tracked obstacle's report may be at a decision (s):
+            the age every controller is solved for, or with ``report_age`` "measured"
+            the one until the runtime measured its own (:mod:`hil.runtime.report_age`).
         position_tolerance_m: How far a tracked obstacle's reported position may lag the
             tracker's latest (m): the ROS tracker keeps a layout until some centre moved
             this far, so a small move does not cost a re-synthesis; moving obstacles are
             grown by it too.
+        report_age: "stated" (``max_report_age_s`` for every controller) or "measured"
+            (each controller's age from the ages the runtime measured).
     """
 
     max_report_age_s: float = 1.0
     position_tolerance_m: float = 0.01
+    report_age: str = "stated"
+
+    def __repr__(self) -> str:
+        # The scenario's digest is its repr: "stated" (the default, and all there was
+        # before "measured") leaves it out, so older scenarios keep the hash their logs carry.
+        extra = "" if self.report_age == "stated" else f", report_age={self.report_age!r}"
+        return (
+            f"ObstacleTracking(max_report_age_s={self.max_report_age_s!r}, "
+            f"position_tolerance_m={self.position_tolerance_m!r}{extra})"
+        )
+
+    @property
+    def measures_report_age(self) -> bool:
+        """Whether each controller's report age comes from the runtime's measurement."""
+        return self.report_age == "measured"
 
     def horizon_s(self, tau_s: float) -> float:
         """Return how long after its report a tracked obstacle is avoided (s)."""
@@ -278,6 +301,18 @@ class Scenario:
                 for o, d in zip(self.obstacles, offsets, strict=True)
             )
         )
+
+    def with_report_age(self, report_age_s: float) -> Scenario:
+        """Return the scenario whose tracked obstacles are avoided for reports `report_age_s` old.
+
+        Raises:
+            ScenarioError: An age that is not > 0.
+        """
+        if not report_age_s > 0.0:
+            raise ScenarioError(f"a report age must be > 0 s, got {report_age_s!r}")
+        if report_age_s == self.tracking.max_report_age_s:
+            return self
+        return replace(self, tracking=replace(self.tracking, max_report_age_s=report_age_s))
 
     def with_transient(self, budget: TransientBudget) -> Scenario:
         """Return the same scenario with another transient budget.

@@ -196,7 +196,8 @@ def controller_view(
         if layout is None:
             slices.append(None)
             continue
-        key = tuple(layout.rectangles)
+        age = decision.report_age_s or scenario.tracking.max_report_age_s
+        key = (tuple(layout.rectangles), age)
         spent = time.perf_counter() - start
         if key not in controllers and controllers and budget_s is not None and spent > budget_s:
             over_budget += 1
@@ -204,7 +205,7 @@ def controller_view(
             continue
         if key not in controllers:
             try:
-                controllers[key] = solver(layout.as_obstacle_layout()).controller
+                controllers[key] = solver(layout.as_obstacle_layout(), age).controller
             except SymbolicError as err:
                 notes.append(f"layout at t={layout.t_ns} ns: {err}")
                 controllers[key] = None

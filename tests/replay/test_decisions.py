@@ -17,6 +17,7 @@ from hil.replay.decisions import (
     consistency,
     is_cost_tie,
     recompute,
+    relied_on_stale_report,
 )
 from hil.replay.regression import Status
 from hil.runs.sim_run import default_start
@@ -58,6 +59,16 @@ def _decision(**changes: object) -> Decision:
         1_000_000_000, [1.0, 2.0, 0.5], 7, 4.0, True, INPUTS[[1, 2]], [1, 2], 2, 1, "h"
     )
     return dataclasses.replace(d, **changes)  # type: ignore[arg-type]
+
+
+def test_a_decision_on_a_report_older_than_its_controller_was_solved_for_is_found() -> None:
+    # Decided at 1 s on the report of 0.25 s: 0.75 s old.
+    assert relied_on_stale_report(_decision(report_age_s=0.75, report_t_ns=250_000_000)) is None
+    found = relied_on_stale_report(_decision(report_age_s=0.5, report_t_ns=250_000_000))
+    assert found is not None
+    assert "0.750 s old" in found.message
+    assert "older than the 0.5 s its controller was solved for" in found.message
+    assert relied_on_stale_report(_decision()) is None  # a log without the fields
 
 
 def test_a_consistent_decision_has_no_problem() -> None:

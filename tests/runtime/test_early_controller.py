@@ -48,6 +48,9 @@ class _Blind(SymbolicAdapter):
         return math.inf
 
 
+Result = SynthesisResult[SymbolicController]
+
+
 class _Scripted(Resynthesizer[SymbolicController]):
     """Syntheses on the simulated clock: the first mid-run one comes early, then full.
 
@@ -59,7 +62,7 @@ class _Scripted(Resynthesizer[SymbolicController]):
     def __init__(
         self, sim: SimWorld, full: SymbolicAdapter, early: SymbolicAdapter, full_after_s: float
     ) -> None:
-        super().__init__(lambda layout: full, ResynthesisMode.INLINE)
+        super().__init__(lambda layout, age: full, ResynthesisMode.INLINE)
         self._sim = sim
         self._full = full
         self._early = early
@@ -73,17 +76,22 @@ class _Scripted(Resynthesizer[SymbolicController]):
     def busy(self) -> bool:
         return bool(self._queue)
 
-    def submit(self, layout: ObstacleLayout, vessel: VesselState | None = None) -> None:
+    def submit(
+        self, layout: ObstacleLayout, report_age_s: float, vessel: VesselState | None = None
+    ) -> None:
         self._versions += 1
         now = self._sim.clock.now_ns()
         v = self._versions
         if vessel is None or self.vessels:
-            self._queue.append((now, SynthesisResult(v, layout, self._full, None, 0.0)))
+            full: Result = SynthesisResult(v, layout, report_age_s, self._full, None, 0.0)
+            self._queue.append((now, full))
             return
         self.vessels.append(vessel)
         self.full_due_ns = now + self._full_after_ns
-        self._queue.append((now, SynthesisResult(v, layout, self._early, None, 0.5, False)))
-        self._queue.append((self.full_due_ns, SynthesisResult(v, layout, self._full, None, 3.5)))
+        early: Result = SynthesisResult(v, layout, report_age_s, self._early, None, 0.5, False)
+        self._queue.append((now, early))
+        full = SynthesisResult(v, layout, report_age_s, self._full, None, 3.5)
+        self._queue.append((self.full_due_ns, full))
 
     def poll(self) -> SynthesisResult[SymbolicController] | None:
         now = self._sim.clock.now_ns()
@@ -119,7 +127,7 @@ def _run(
         LoopConfig(max_duration_s=12.0, resynthesis_period_s=2.0),
         synthesizer_for(scenario, folder / "tables"),
         ResynthesisMode.INLINE,
-        solver=lambda layout: adapter,
+        solver=lambda layout, age: adapter,
     )
     scripted = _Scripted(sim, adapter, adapter if early is None else early, full_after_s)
     runtime.resynthesizer = scripted

@@ -96,7 +96,7 @@ def run_runtime(refs: F) -> tuple[MemoryLog, SimWorld, ScriptedController]:
     world = SimWorld(SimConfig(start=START, seed=3), max_duration_s=2.0 * len(refs) + 5.0)
     controller = ScriptedController(refs)
 
-    def solve(layout: ObstacleLayout) -> ScriptedController:
+    def solve(layout: ObstacleLayout, report_age_s: float) -> ScriptedController:
         return controller
 
     # Stop at the tick that would start decision len(refs) (ticks every 50 ms).

@@ -74,7 +74,7 @@ def _run(
     world = World(sim.clock, sim.pose, sim.imu, sim.obstacles, sim.thrusters)
     log = MemoryLog()
 
-    def solve(_layout: ObstacleLayout) -> SymbolicAdapter:
+    def solve(_layout: ObstacleLayout, _report_age_s: float) -> SymbolicAdapter:
         return adapter
 
     runtime = build_runtime(

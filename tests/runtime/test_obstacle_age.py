@@ -72,7 +72,7 @@ def _run(setup: tuple[Scenario, SymbolicAdapter, Path], speed_mps: float,
     log = MemoryLog()
     solved: list[ObstacleLayout] = []
 
-    def solve(layout: ObstacleLayout) -> SymbolicAdapter:
+    def solve(layout: ObstacleLayout, report_age_s: float) -> SymbolicAdapter:
         solved.append(layout)
         return adapter
 
@@ -115,7 +115,7 @@ def test_a_report_older_than_the_max_age_stops_decisions_until_a_fresh_one(
     setup: tuple[Scenario, SymbolicAdapter, Path],
 ) -> None:
     runtime, log, solved = _run(setup, 0.05)
-    assert runtime.obstacle_max_age_s == 1.0  # the coarse scenario's max_report_age_s
+    assert runtime.report_ages.next_s() == 1.0  # the coarse scenario's max_report_age_s
     # A fresher report of the still obstacle renews the stamp, it is not synthesized: the
     # syntheses are the 2-s timer's (0, 2, ..., 14 s) as with fixed obstacles, each of the
     # newest report then (the 5-s one at 6 and 8 s, the tracker silent).
@@ -167,20 +167,22 @@ def test_a_moved_obstacle_is_still_synthesized(
 class _Deferred(Resynthesizer[SymbolicController]):
     """A resynthesizer whose syntheses finish only when told (as a thread's would, later)."""
 
-    def __init__(self, solve: Callable[[ObstacleLayout], SymbolicController]) -> None:
+    def __init__(self, solve: Callable[[ObstacleLayout, float], SymbolicController]) -> None:
         super().__init__(solve, ResynthesisMode.INLINE)
-        self.held: list[ObstacleLayout] = []
+        self.held: list[tuple[ObstacleLayout, float]] = []
 
     @property
     def busy(self) -> bool:
         return bool(self.held)
 
-    def submit(self, layout: ObstacleLayout, vessel: VesselState | None = None) -> None:
-        self.held.append(layout)
+    def submit(
+        self, layout: ObstacleLayout, report_age_s: float, vessel: VesselState | None = None
+    ) -> None:
+        self.held.append((layout, report_age_s))
 
     def finish(self) -> None:
-        for layout in self.held:
-            super().submit(layout)
+        for layout, age in self.held:
+            super().submit(layout, age)
         self.held.clear()
 
 
@@ -214,9 +216,9 @@ def _deferred_runtime(
     runtime = build_runtime(
         scenario, world, log, LoopConfig(resynthesis_period_s=None),
         synthesizer_for(scenario, folder / "tables"), ResynthesisMode.INLINE,
-        solver=lambda layout: adapter,
+        solver=lambda layout, age: adapter,
     )
-    deferred = _Deferred(lambda layout: adapter)
+    deferred = _Deferred(lambda layout, age: adapter)
     runtime.resynthesizer = deferred
     return runtime, deferred, reports, log
 
@@ -232,10 +234,10 @@ def test_a_synthesis_finishing_after_a_renewal_keeps_the_renewed_stamp(
         runtime._swap_controller(round(t_s * NS_PER_S))
 
     step(1.0)  # the 1-s report: submitted, being solved
-    assert [layout.t_ns for layout in deferred.held] == [NS_PER_S]
+    assert [layout.t_ns for layout, _ in deferred.held] == [NS_PER_S]
     reports.layout = ObstacleLayout(2 * NS_PER_S, still)
     step(2.0)  # the same shapes, fresher: renewed, not submitted
-    assert [layout.t_ns for layout in deferred.held] == [NS_PER_S]
+    assert [layout.t_ns for layout, _ in deferred.held] == [NS_PER_S]
     deferred.finish()
     step(2.5)  # the 1-s synthesis is in: it relies on the renewed 2-s report
     assert runtime.controller_version == 1
@@ -248,7 +250,7 @@ def test_a_synthesis_finishing_after_a_renewal_keeps_the_renewed_stamp(
     moved = (still[0].translate(0.0, -0.05), *still[1:])
     reports.layout = ObstacleLayout(4 * NS_PER_S, moved)
     step(4.0)  # moved: submitted; the controller in force keeps its own report
-    assert deferred.held == [ObstacleLayout(4 * NS_PER_S, moved)]
+    assert [layout for layout, _ in deferred.held] == [ObstacleLayout(4 * NS_PER_S, moved)]
     reports.layout = ObstacleLayout(5 * NS_PER_S, moved)
     step(5.0)  # a renewal of the moved shapes leaves the still ones' report as it was
     assert runtime._controller_layout == ObstacleLayout(3 * NS_PER_S, still)
@@ -266,7 +268,7 @@ def test_a_controller_arriving_older_than_the_max_age_is_named(
     runtime, deferred, reports, log = _deferred_runtime(setup)
     still = reports.layout.obstacles
     moved = (still[0].translate(0.0, -0.05), *still[1:])
-    assert runtime.obstacle_max_age_s == 1.0
+    assert runtime.report_ages.next_s() == 1.0
 
     def step(t_s: float) -> list[str]:
         runtime._watch_obstacles(round(t_s * NS_PER_S))
@@ -282,7 +284,8 @@ def test_a_controller_arriving_older_than_the_max_age_is_named(
     warned = step(3.5)
     assert len(warned) == 1
     assert "controller v2 arrived 1.50 s after its obstacle report" in warned[0]
-    assert "max_report_age_s = 1 s" in warned[0]
+    assert "older than the 1 s it was solved for" in warned[0]
+    assert 'report_age = "measured"' in warned[0]  # the remedy, named
     assert runtime.controller_version == 2
     reports.layout = ObstacleLayout(4 * NS_PER_S, moved)
     assert len(step(4.0)) == 1  # a fresher report of its shapes renews it: nothing new
@@ -291,7 +294,7 @@ def test_a_controller_arriving_older_than_the_max_age_is_named(
 
 def test_fixed_obstacles_never_age(setup: tuple[Scenario, SymbolicAdapter, Path]) -> None:
     runtime, log, solved = _run(setup, 0.0)
-    assert runtime.obstacle_max_age_s is None
+    assert not runtime.report_ages.tracks
     assert not [c for c in log.event_codes() if c.startswith("obstacles_")]
     times_s = [d.t_ns / NS_PER_S for d in log.decisions]
     assert times_s[:5] == pytest.approx([1.05, 3.05, 5.05, 7.05, 9.05])
