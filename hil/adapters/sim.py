@@ -83,6 +83,9 @@ class SimConfig:
         obstacle_report_period_s: How often the obstacles' positions are reported when
             motions are scheduled (s).
         thruster_outages: Spans of thruster-link failure (fault injection).
+        loop_stalls_s: Spans (start_s, duration_s) in which the loop sleeping on this
+            world's clock cannot run (fault injection: the clock's ``stalls_ns``); the
+            vessel moves on under the last command.
     """
 
     start: tuple[float, float, float]
@@ -99,6 +102,7 @@ class SimConfig:
     motions: tuple[ObstacleMotion, ...] = ()
     obstacle_report_period_s: float = 1.0
     thruster_outages: tuple[ThrusterOutage, ...] = ()
+    loop_stalls_s: tuple[tuple[float, float], ...] = ()
 
     def __post_init__(self) -> None:
         if len(self.start) != 3 or not all(math.isfinite(v) for v in self.start):
@@ -110,6 +114,12 @@ class SimConfig:
             if not 0 <= motion.index < len(self.obstacles):
                 raise ValueError(f"obstacle motion names obstacle {motion.index!r}, "
                                  f"but there are {len(self.obstacles)}")
+        for start_s, duration_s in self.loop_stalls_s:
+            if not (math.isfinite(start_s) and math.isfinite(duration_s) and duration_s > 0):
+                raise ValueError(
+                    f"a loop stall needs a finite start and a duration > 0 s, got "
+                    f"({start_s!r}, {duration_s!r})"
+                )
         if not self.obstacle_report_period_s > 0:
             raise ValueError("obstacle_report_period_s must be positive, "
                              f"got {self.obstacle_report_period_s!r}")
@@ -226,7 +236,10 @@ class SimWorld:
         self._imu = SimulatedImu(config.imu, seed=int(seeds[1]))
         self._inbox = _Inbox()
         self._truth: list[FloatArray] = []
-        self.clock = SimClock(0, self._advance)
+        stalls = tuple(
+            (round(a * NS_PER_S), round((a + d) * NS_PER_S)) for a, d in config.loop_stalls_s
+        )
+        self.clock = SimClock(0, self._advance, stalls)
         self.pose = SimPoseSource(self._inbox)
         self.imu = SimImuSource(self._inbox)
         self.obstacles = SimObstacleSource(self)

@@ -18,13 +18,20 @@ class SimClock:
         start_ns: Initial time (ns).
         advance: Called as `advance(t_from_ns, t_to_ns)` whenever time moves
             forward, e.g. to integrate the vessel; None for a bare clock.
+        stalls_ns: Spans [start, stop) (ns) in which the sleeper cannot run (a stalled
+            loop: a pause of the process, a busy CPU): a sleep ending inside one ends at
+            its stop, the world moving on meanwhile (fault injection).
     """
 
     def __init__(
-        self, start_ns: int = 0, advance: Callable[[int, int], None] | None = None
+        self,
+        start_ns: int = 0,
+        advance: Callable[[int, int], None] | None = None,
+        stalls_ns: tuple[tuple[int, int], ...] = (),
     ) -> None:
         self._now_ns = int(start_ns)
         self._advance = advance
+        self._stalls_ns = stalls_ns
 
     def now_ns(self) -> int:
         """Return the simulated time (ns)."""
@@ -34,6 +41,9 @@ class SimClock:
         """Advance simulated time (and the world) to `t_ns`; never moves backwards."""
         if t_ns <= self._now_ns:
             return
+        for start, stop in self._stalls_ns:
+            if start <= t_ns < stop:
+                t_ns = stop
         if self._advance is not None:
             self._advance(self._now_ns, t_ns)
         self._now_ns = int(t_ns)

@@ -15,6 +15,9 @@ interval it governs:
   the next decision came before tau (a re-decision cut the interval short);
 - descent: the value there, with the chosen input in force, strictly below the
   decision's;
+- time: the next decision at most tau + late after it (every budget is bounded over
+  periods up to that long); a later one is a broken premise (a stalled loop; the runtime
+  names it ``late_interval``), the size how much later (s);
 - velocity: |nu_hat - nu_ref| per axis within the budget's envelope of the decision's
   class at that time into the interval, plus :data:`VELOCITY_ESTIMATE_TOLERANCE` for
   the velocity estimate's own error (size: the largest excess, surge/sway m/s, yaw deg/s),
@@ -206,10 +209,18 @@ def judge_intervals(
         exceeded: tuple[str, ...] = ()
         excess: tuple[float, float, float] | None = None
         interrupted = _interruption(run, d.t_ns, end)
+        late_s = None
         if interrupted is not None:
             notes.append(f"interrupted by {interrupted[1]} at {time_s(interrupted[0])}")
         if contract is not None:
             horizon_ns = round((contract.tau_s + contract.late_s) * NS_PER_S)
+            if not last and interrupted is None and end - d.t_ns > horizon_ns:
+                late_s = (end - d.t_ns - horizon_ns) / NS_PER_S
+                notes.append(
+                    f"input held {(end - d.t_ns) / NS_PER_S:.3f} s, past tau + late = "
+                    f"{horizon_ns / NS_PER_S:g} s by {late_s:.3f} s: a broken premise "
+                    "(the loop stalled); no budget covers this interval"
+                )
             stop = min(end, d.t_ns + horizon_ns)
             if interrupted is not None:
                 stop = min(stop, interrupted[0])
@@ -274,7 +285,10 @@ def judge_intervals(
         in_interval = bool(np.any((failed >= d.t_ns) & (failed < max(end, d.t_ns + 1))))
         if in_interval:
             notes.insert(0, "a failed check names a time in this interval")
-        broken = tube is False or succ is False or descent is False or bool(exceeded)
+        broken = (
+            tube is False or succ is False or descent is False or bool(exceeded)
+            or late_s is not None
+        )
         out.append(
             Interval(
                 t_ns=d.t_ns,
@@ -294,6 +308,7 @@ def judge_intervals(
                 envelope_excess=excess,
                 status=Status.FAIL if in_interval or broken else Status.PASS,
                 notes=tuple(notes),
+                late_s=late_s,
             )
         )
     return tuple(out)
@@ -311,6 +326,7 @@ def check_contract(intervals: Sequence[Interval]) -> Check:
         or i.successor_contained is False
         or i.value_decreased is False
         or i.envelope_exceeded
+        or i.late_s is not None
     ]
     worst_tube = max((i.tube_distance_m or 0.0 for i in judged), default=0.0)
     metrics = {
@@ -320,6 +336,8 @@ def check_contract(intervals: Sequence[Interval]) -> Check:
         "successor_misses": sum(i.successor_contained is False for i in judged),
         "value_not_decreasing": sum(i.value_decreased is False for i in judged),
         "envelope_exceeded": sum(bool(i.envelope_exceeded) for i in judged),
+        "late_intervals": sum(i.late_s is not None for i in judged),
+        "worst_late_s": max((i.late_s or 0.0 for i in judged), default=0.0),
         "worst_tube_distance_m": worst_tube,
         "velocity_estimate_tolerance": list(VELOCITY_ESTIMATE_TOLERANCE),
     }
@@ -336,6 +354,7 @@ def check_contract(intervals: Sequence[Interval]) -> Check:
                 "heading_distance_rad": i.heading_distance_rad,
                 "value_decreased": i.value_decreased,
                 "envelope_excess": i.envelope_excess,
+                "late_s": i.late_s,
             },
         )
         for i in broken
@@ -345,7 +364,7 @@ def check_contract(intervals: Sequence[Interval]) -> Check:
             "contract",
             Status.PASS,
             f"{len(judged)} intervals kept their contracts (tube, successor, value, "
-            f"velocity envelope); estimate at most {worst_tube:.4f} m from its tube",
+            f"velocity envelope, time); estimate at most {worst_tube:.4f} m from its tube",
             (),
             metrics,
         )

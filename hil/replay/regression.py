@@ -137,6 +137,8 @@ class Interval:
         status: PASS, or FAIL (the contract broken, or a check failed at a time in the
             interval).
         notes: Why the interval is not PASS, one short line each.
+        late_s: How much longer than tau + late its input was held before the next
+            decision (s): a broken premise (a stalled loop); None when in time.
     """
 
     t_ns: int
@@ -156,12 +158,14 @@ class Interval:
     envelope_excess: tuple[float, float, float] | None = None
     status: Status = Status.PASS
     notes: tuple[str, ...] = ()
+    late_s: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """Return a JSON-ready dictionary (times in ns and s)."""
         return _clean(  # type: ignore[no-any-return]
             {
                 "t_ns": self.t_ns,
+                "late_s": self.late_s,
                 "t_s": self.t_ns / NS_PER_S,
                 "end_ns": self.end_ns,
                 "state": self.state,

@@ -206,7 +206,8 @@ def rerun_stack(
     for t_ns in ticks_ns:
         world.clock.sleep_until(int(t_ns))
         if stop is not None and t_ns >= stop.t_ns and runtime.mode is not Mode.STOPPED:
-            runtime.request_stop(stop.text)
+            runtime.request_stop(stop.text)  # once: a second request would cut the braking
+            stop = None
         if runtime.mode in (Mode.DOCKED, Mode.STOPPED):
             # Runtime.run() zeroes the thrusters once on its way out, at the next tick.
             with contextlib.suppress(ThrusterSinkError):

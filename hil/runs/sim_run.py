@@ -68,6 +68,8 @@ class SimRunSpec:
         out_dir: Record the run as a bag in this new directory; None keeps it in memory.
         loop: Loop timing and fault thresholds.
         pose_outages_s: Injected pose outages as (start_s, duration_s).
+        loop_stalls_s: Injected stalls of the control loop as (start_s, duration_s): it
+            does not tick meanwhile, the vessel moving on under the last command.
         thruster_outages: Injected thruster-link failures.
         motions: Scheduled obstacle motions besides the scenario's ``[[simulated_motion]]``
             (see :func:`world_motions`).
@@ -88,6 +90,7 @@ class SimRunSpec:
     start_velocity: tuple[float, float, float] | None = None
     loop: LoopConfig = field(default_factory=LoopConfig)
     pose_outages_s: tuple[tuple[float, float], ...] = ()
+    loop_stalls_s: tuple[tuple[float, float], ...] = ()
     thruster_outages: tuple[ThrusterOutage, ...] = ()
     motions: tuple[ObstacleMotion, ...] = ()
     cache_dir: Path | None = None
@@ -174,7 +177,17 @@ def build_runtime(
         solver: (Layout, report age) -> controller; a :class:`LayoutSolver` if None.
         gains: Velocity-PID gains; None: the shipped ones.
         synthesis_latency_s: Inline: each synthesis takes this long on the world's clock.
+
+    Raises:
+        ValueError: The loop's decision period is not the scenario's tau (every budget
+            and the controller's guarantee are for decisions every tau).
     """
+    if loop.decision_period_s != scenario.tau_s:
+        raise ValueError(
+            f"[loop] decision_period_s = {loop.decision_period_s:g} s, but scenario "
+            f"{scenario.name!r} was abstracted for tau_s = {scenario.tau_s:g} s: the "
+            "controller's guarantee holds for decisions every tau; set them equal"
+        )
     layout_solver = LayoutSolver(scenario, synthesizer)
     solve = solver if solver is not None else layout_solver
     # In a thread a new layout's controller is put in force as soon as it covers the
@@ -212,6 +225,7 @@ def sim_config(spec: SimRunSpec, scenario: Scenario) -> SimConfig:
         obstacle_report_period_s=scenario.simulation.obstacle_report_period_s,
         pose=PoseSensorConfig(scheduled_dropouts_s=spec.pose_outages_s),
         thruster_outages=spec.thruster_outages,
+        loop_stalls_s=spec.loop_stalls_s,
         load=spec.load if spec.load is not None else EnvironmentalLoad(),
     )
 
@@ -352,6 +366,7 @@ def spec_to_json(spec: SimRunSpec) -> dict[str, Any]:
         "start": None if spec.start is None else list(spec.start),
         **moving,
         "pose_outages_s": [list(p) for p in spec.pose_outages_s],
+        **({"loop_stalls_s": [list(p) for p in spec.loop_stalls_s]} if spec.loop_stalls_s else {}),
         "thruster_outages": [[o.start_s, o.stop_s] for o in spec.thruster_outages],
         "motions": [
             {
@@ -385,6 +400,7 @@ def spec_from_json(data: dict[str, Any]) -> SimRunSpec:
             start_velocity=None if nu is None else (float(nu[0]), float(nu[1]), float(nu[2])),
             loop=LoopConfig(max_duration_s=float(data.get("max_duration_s", 600.0))),
             pose_outages_s=tuple((float(a), float(b)) for a, b in data.get("pose_outages_s", [])),
+            loop_stalls_s=tuple((float(a), float(b)) for a, b in data.get("loop_stalls_s", [])),
             thruster_outages=tuple(
                 ThrusterOutage(float(a), float(b)) for a, b in data.get("thruster_outages", [])
             ),

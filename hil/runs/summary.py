@@ -102,6 +102,10 @@ class RunSummary:
             report was when a fresher one took over (s; 0: none measured).
         report_age_solved_s: The largest report age a controller in force was solved
             for (s; 0: obstacles fixed).
+        brake_s: How long the vessel braked to rest under the low level after a stop
+            (abort, operator, timeout) before the thrust was cut (s); None: no braking.
+        late_intervals: Decisions later than tau + late after the previous one (a
+            stalled loop: a broken premise, ``late_interval``); worst_late_s by how much (s).
     """
 
     scenario: str
@@ -135,6 +139,9 @@ class RunSummary:
     obstacle_stale_stops: int = 0
     report_age_relied_s: float = 0.0
     report_age_solved_s: float = 0.0
+    late_intervals: int = 0
+    worst_late_s: float = 0.0
+    brake_s: float | None = None
 
     def to_json(self) -> str:
         """Return the summary as one line of JSON (NaN and inf as null)."""
@@ -177,6 +184,11 @@ class RunSummary:
         if self.moving_obstacles or self.obstacle_stale_stops:
             table.add_row("moving obstacles / stale-report stops",
                           f"{self.moving_obstacles} / {self.obstacle_stale_stops}", "-")
+        if self.brake_s is not None:
+            table.add_row("braked to rest after the stop", f"{self.brake_s:.1f} s", "-")
+        if self.late_intervals:
+            table.add_row("late intervals (worst, past tau + late)",
+                          f"{self.late_intervals} ({self.worst_late_s:.3f} s)", "0")
         if self.report_age_solved_s:
             table.add_row("obstacle report age relied on / solved for (max)",
                           f"{self.report_age_relied_s:.2f} / {self.report_age_solved_s:g} s", "-")
@@ -284,6 +296,9 @@ def summarize_run(
         obstacle_stale_stops=stats.obstacle_stale_stops,
         report_age_relied_s=stats.report_age_relied_s,
         report_age_solved_s=stats.report_age_solved_s,
+        late_intervals=stats.late_intervals,
+        worst_late_s=stats.worst_late_s,
+        brake_s=stats.brake_s,
     )
 
 

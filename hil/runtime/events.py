@@ -61,6 +61,14 @@ class EventCode(enum.Enum):
     VALUE_NOT_DECREASING = "value_not_decreasing"
     """At the next decision the value (previous input in force) was not below the
     previous decision's (WARN; both values): the decision is taken as always."""
+    AT_REST = "at_rest"
+    """Braking after a stop ended (INFO at rest, WARN when not at rest after the longest
+    braking): thrusters to zero."""
+    LATE_INTERVAL = "late_interval"
+    """A decision came later than tau + the late budget after the previous one (ERROR,
+    with how long the input was held and by how much too long): the loop stalled, and the
+    one-step budget, bounded over periods up to tau + late, does not cover that interval.
+    The decision is taken at once, as a first decision (from the estimated velocity)."""
     ABORTED = "aborted"
     """The run cannot go on (no controller for the layout, a state no safe input leaves
     from): thrusters to zero and the run ends at once, the text saying why."""

@@ -31,7 +31,7 @@ from hil.adapters.interfaces import (
 )
 from hil.core.records import Decision, EventLevel
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
-from hil.core.transient import START_PERIODS
+from hil.core.transient import LATE_S, START_PERIODS
 from hil.runtime.events import EventCode
 from hil.runtime.monitor import Monitor, Violation
 from hil.runtime.report_age import ReportAgeBudget
@@ -56,8 +56,23 @@ class Mode(enum.Enum):
     """In the target set: holding position with a zero velocity reference."""
     DOCKED = "docked"
     """Held the target long enough: the run is over."""
+    BRAKING = "braking"
+    """Stopping (an abort, an operator's stop, a timeout): velocity reference zero under
+    the low level until the vessel is at rest, then thrusters at zero (STOPPED)."""
     STOPPED = "stopped"
-    """Stopped for good (timeout, fatal fault, signal)."""
+    """Stopped for good, thrusters at zero (at rest after braking, a thruster fault, a
+    stop without a pose or a second stop request)."""
+
+
+REST_SPEED_MPS = 0.01
+"""At rest: |u| and |v| of the estimate at most this (m/s)..."""
+REST_YAW_RATE_RADPS = 0.01
+"""... and |r| at most this (rad/s) ..."""
+REST_HOLD_S = 1.0
+"""... for this long (s): then braking ends with thrusters at zero."""
+MAX_BRAKE_S = 8.0
+"""Braking longer than this (s) ends with thrusters at zero and a warning: from the
+fastest input (0.2 m/s) the vessel is at rest within about 4 s under the low level."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -154,6 +169,7 @@ class Runtime:
         self._last_submit_ns: int | None = None
         self._last_pose_ns: int | None = None
         self._next_decision_ns = 0
+        self._last_choice_ns: int | None = None  # when the input in force was chosen
         self._nu_ref = np.zeros(3)
         self._previous_input = np.zeros(3)
         # Input-grid index of the reference in force; None: the next decision starts
@@ -168,14 +184,23 @@ class Runtime:
         self.stats.start_ns = self._start_ns
         self._target_since_ns = 0
         self._stop_requested: str | None = None
+        self._stop_requests = 0
+        self._requests_at_brake = 0
+        self._brake_since_ns = 0
+        self._rest_since_ns: int | None = None
         self._abort: str | None = None
         self._not_winning_before = False
 
     # -- public -----------------------------------------------------------------------
 
     def request_stop(self, reason: str) -> None:
-        """Ask the loop to stop at the next tick (safe from a signal handler)."""
+        """Ask the loop to stop at the next tick (safe from a signal handler).
+
+        The vessel brakes to rest under the low level (:attr:`Mode.BRAKING`); a second
+        request while braking cuts the thrust at once.
+        """
         self._stop_requested = reason
+        self._stop_requests += 1
 
     def run(self) -> RunStats:
         """Tick until docked or stopped; thrusters are zeroed on the way out."""
@@ -205,7 +230,10 @@ class Runtime:
         self._ingest(t_ns)
         self._watch_obstacles(t_ns)
         self._swap_controller(t_ns)
-        if self._check_stop(t_ns):
+        if self.mode is not Mode.BRAKING and self._check_stop(t_ns) and self.mode is Mode.STOPPED:
+            return
+        if self.mode is Mode.BRAKING:  # from this tick on: every tick commands the brake
+            self._brake(t_ns)
             return
         estimate = self.observer.estimate()
         if self._pose_is_stale(t_ns):
@@ -220,6 +248,7 @@ class Runtime:
             self._estimating_since_ns = t_ns
         if t_ns >= self._next_decision_ns and self._observer_settled(t_ns):
             self._take_early(t_ns, eta_hat)
+            self._check_late(t_ns)
             # A stale obstacle report leaves the decision due: taken once a fresher one is in.
             if self._ready_to_decide(t_ns):
                 for violation in self.monitor.at_decision(t_ns, eta_hat):
@@ -227,7 +256,7 @@ class Runtime:
                 self._decide(t_ns, eta_hat, nu_hat)
                 self._next_decision_ns = t_ns + round(self.config.decision_period_s * NS_PER_S)
                 if self._abort is not None:
-                    self._stop(t_ns, EventCode.ABORTED, self._abort)
+                    self._stop_after_decision(t_ns, eta_hat, nu_hat)
                     return
         else:
             exit_ = self.monitor.tick(t_ns, eta_hat)
@@ -240,21 +269,14 @@ class Runtime:
                     self._decide(t_ns, eta_hat, nu_hat)
                     self._next_decision_ns = t_ns + round(self.config.decision_period_s * NS_PER_S)
                     if self._abort is not None:
-                        self._stop(t_ns, EventCode.ABORTED, self._abort)
+                        self._stop_after_decision(t_ns, eta_hat, nu_hat)
                         return
                 else:
                     self._next_decision_ns = t_ns  # decide once a fresher report is in
         if self.mode is Mode.WAITING:
             self._send(ThrusterCommand.zero(t_ns))
             return
-        out = self.low_level.step(self._nu_ref, nu_hat, t_ns)
-        self.log.velocity_reference(t_ns, self._nu_ref)
-        self.log.force(t_ns, out.tau)
-        self._send(out.command)
-        self.stats.t_ns.append(t_ns)
-        self.stats.eta_hat.append(eta_hat)
-        self.stats.nu_hat.append(nu_hat)
-        self.stats.nu_ref.append(self._nu_ref.copy())
+        self._fly(t_ns, eta_hat, nu_hat)
 
     # -- steps of a tick ----------------------------------------------------------------
 
@@ -335,8 +357,8 @@ class Runtime:
             and self._last_submit_ns is not None
             and t_ns - self._last_submit_ns >= period * NS_PER_S
         )
-        if not (changed or timer_due):
-            return
+        if not (changed or timer_due) or self.mode is Mode.BRAKING:
+            return  # (braking to rest needs no new controller; reports are still recorded)
         if self.resynthesizer.busy and not changed:
             self._event(
                 t_ns,
@@ -529,6 +551,35 @@ class Runtime:
             return False
         return self._obstacles_fresh(t_ns)
 
+    def _check_late(self, t_ns: int) -> None:
+        """Name a decision due later than tau + late after the input in force was chosen.
+
+        The budgets bound an interval of at most tau + :data:`LATE_S`; past that the
+        input in force has gone beyond what its decision assumed (a stalled loop). The
+        decision is then a first one, from the estimated velocity, and the interval's
+        successor is not judged (its premise broke; the event says so, with its size).
+        """
+        chosen = self._last_choice_ns
+        if chosen is None or self._reference_index is None:
+            return
+        held_s = (t_ns - chosen) / NS_PER_S
+        allowed_s = self.config.decision_period_s + LATE_S
+        if held_s <= allowed_s:
+            return
+        s = self.stats
+        s.late_intervals += 1
+        s.worst_late_s = max(s.worst_late_s, held_s - allowed_s)
+        self._event(
+            t_ns,
+            EventLevel.ERROR,
+            EventCode.LATE_INTERVAL,
+            f"the input chosen at t={chosen} ns was held {held_s:.3f} s, past tau + late = "
+            f"{allowed_s:g} s by {held_s - allowed_s:.3f} s (the loop stalled): no budget "
+            "covers it; deciding at once as a first decision",
+        )
+        self._reference_index = None
+        self.monitor.clear()
+
     def _renewed(self, layout: ObstacleLayout) -> ObstacleLayout:
         """Return the newest report of `layout`'s shapes (a renewal while it was solved)."""
         submitted = self._submitted_layout
@@ -555,13 +606,95 @@ class Runtime:
         return False
 
     def _stop(self, t_ns: int, code: EventCode, text: str) -> None:
-        self.mode = Mode.STOPPED
+        """End the run: brake to rest under the low level, or cut thrust where it cannot.
+
+        Without control there is nothing to brake (waiting for a controller, holding on a
+        lost pose, no estimate): thrust goes to zero at once, as it already is.
+        """
         self.stats.end_reason = text
         self.stats.aborted = code is EventCode.ABORTED
         self._event(
             t_ns, EventLevel.ERROR if code is not EventCode.STOPPED else EventLevel.INFO, code, text
         )
+        if self.mode in (Mode.WAITING, Mode.HOLD) or self.observer.estimate() is None:
+            self._cut(t_ns)
+            return
+        self.mode = Mode.BRAKING
+        self._brake_since_ns = t_ns
+        self._rest_since_ns = None
+        self._requests_at_brake = self._stop_requests
+        self._reference_index = None
+        self.monitor.clear()
+        self._set_reference(np.zeros(3))
+
+    def _fly(self, t_ns: int, eta_hat: FloatArray, nu_hat: FloatArray) -> None:
+        """Step the low level toward the velocity reference in force; record the tick."""
+        out = self.low_level.step(self._nu_ref, nu_hat, t_ns)
+        self.log.velocity_reference(t_ns, self._nu_ref)
+        self.log.force(t_ns, out.tau)
+        self._send(out.command)
+        self.stats.t_ns.append(t_ns)
+        self.stats.eta_hat.append(eta_hat)
+        self.stats.nu_hat.append(nu_hat)
+        self.stats.nu_ref.append(self._nu_ref.copy())
+
+    def _stop_after_decision(self, t_ns: int, eta_hat: FloatArray, nu_hat: FloatArray) -> None:
+        """Abort after a decision of this tick: braking starts now, this tick's command too."""
+        assert self._abort is not None
+        self._stop(t_ns, EventCode.ABORTED, self._abort)
+        if self.mode is Mode.BRAKING:
+            self._fly(t_ns, eta_hat, nu_hat)
+
+    def _cut(self, t_ns: int) -> None:
+        """Thrusters to zero and the run over."""
+        self.mode = Mode.STOPPED
         self._send(ThrusterCommand.zero(t_ns))
+
+    def _brake(self, t_ns: int) -> None:
+        """One tick of braking: the low level holds velocity zero until at rest.
+
+        Thrust is cut at once on a second stop request (the operator's emergency stop),
+        a lost pose (the loop cannot brake blind) or after :data:`MAX_BRAKE_S`.
+        """
+        since_s = (t_ns - self._brake_since_ns) / NS_PER_S
+        if self._stop_requests > self._requests_at_brake:
+            self._event(t_ns, EventLevel.WARN, EventCode.STOPPED,
+                        f"{self._stop_requested} again while braking: thrust cut at once")
+            self._cut(t_ns)
+            return
+        estimate = self.observer.estimate()
+        last = self._last_pose_ns
+        if estimate is None or last is None or t_ns - last > self.config.pose_timeout_s * NS_PER_S:
+            self._event(t_ns, EventLevel.ERROR, EventCode.POSE_LOST,
+                        f"no pose while braking ({since_s:.1f} s in): thrust cut")
+            self._cut(t_ns)
+            return
+        eta_hat, nu_hat = estimate
+        self.log.estimate(t_ns, eta_hat, nu_hat)
+        resting = bool(
+            abs(nu_hat[0]) <= REST_SPEED_MPS and abs(nu_hat[1]) <= REST_SPEED_MPS
+            and abs(nu_hat[2]) <= REST_YAW_RATE_RADPS
+        )
+        if not resting:
+            self._rest_since_ns = None
+        elif self._rest_since_ns is None:
+            self._rest_since_ns = t_ns
+        if self._rest_since_ns is not None and (
+            t_ns - self._rest_since_ns >= REST_HOLD_S * NS_PER_S
+        ):
+            self.stats.brake_s = since_s
+            self._event(t_ns, EventLevel.INFO, EventCode.AT_REST,
+                        f"at rest {since_s:.1f} s after the stop: thrusters to zero")
+            self._cut(t_ns)
+            return
+        if since_s > MAX_BRAKE_S:
+            self.stats.brake_s = since_s
+            self._event(t_ns, EventLevel.WARN, EventCode.AT_REST,
+                        f"not at rest after {MAX_BRAKE_S:g} s of braking (estimate "
+                        f"{np.round(nu_hat, 3).tolist()}): thrusters to zero")
+            self._cut(t_ns)
+            return
+        self._fly(t_ns, eta_hat, nu_hat)
 
     def _obstacles_fresh(self, t_ns: int) -> bool:
         """Return whether a decision may rely on the controller's obstacle report; else stop.
@@ -701,6 +834,7 @@ class Runtime:
         # A stop (reference zero outside the lattice step) is not budgeted: after it the
         # next decision starts afresh from the estimated velocity.
         self._reference_index = chosen_index if chosen_index >= 0 else None
+        self._last_choice_ns = t_ns if chosen_index >= 0 else None
         if chosen_index >= 0:
             self._first_left = max(self._first_left - 1, 0)
             self.monitor.start(t_ns, controller.contract(eta_hat, chosen_index, reference, first))

@@ -2,8 +2,9 @@
 
 A Ctrl-C that raised KeyboardInterrupt inside a tick would leave the thrusters at their
 last command and the log without its end; routed to :meth:`Runtime.request_stop`, the
-loop stops at its next tick, sends zero thrust and records why (a ``stopped`` event),
-so an interrupted run is a complete log that replays as interrupted.
+loop brakes from its next tick to rest, then sends zero thrust, and records why (a
+``stopped`` event), so an interrupted run is a complete log that replays as interrupted.
+Every signal is routed: a second one while braking cuts the thrust at once.
 """
 
 from __future__ import annotations

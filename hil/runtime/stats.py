@@ -22,6 +22,9 @@ class RunStats:
     `successor_misses` and `value_not_decreasing` count the runtime monitor's
     violations (:mod:`hil.runtime.monitor`), the worst sizes in metres beside them;
     `obstacle_stale_stops` the stops for an obstacle report too old to decide on;
+    `brake_s` how long the vessel braked to rest after a stop (s; None: no braking);
+    `late_intervals` the decisions later than tau + late after the previous one, the
+    worst by how much (s);
     with obstacles that move, `report_age_relied_s` the oldest a relied-on report was
     when a fresher one took over and `report_age_solved_s` the largest report age a
     controller in force was solved for (s; 0: none).
@@ -39,6 +42,9 @@ class RunStats:
     rejected_samples: int = 0
     pose_losses: int = 0
     obstacle_stale_stops: int = 0
+    brake_s: float | None = None
+    late_intervals: int = 0
+    worst_late_s: float = 0.0
     report_age_relied_s: float = 0.0
     report_age_solved_s: float = 0.0
     thruster_failures: int = 0

@@ -53,12 +53,20 @@ def test_ctrl_c_stops_the_run_cleanly_and_its_log_replays_as_interrupted(
     assert "NOT DOCKED" in captured.out
     assert "stopped by SIGINT" in captured.err
     assert str(out) in captured.err  # the console names the log
-    # The log is complete: the stop is recorded, and thrust is zero from the stop on.
+    # The log is complete: the stop is recorded, the vessel brakes to rest under the low
+    # level (velocity reference zero), and thrust is zero from then on.
     run = load_run(out)
     stops = [e for e in run.events if e.code == "stopped"]
     assert [e.text for e in stops] == ["stopped by SIGINT"]
+    (rest,) = [e for e in run.events if e.code == "at_rest"]
+    assert rest.t_ns > stops[0].t_ns
     assert len(run.decisions) == 3
-    after = run.thrusters.t_ns >= stops[0].t_ns
+    braking = (run.thrusters.t_ns >= stops[0].t_ns) & (run.thrusters.t_ns < rest.t_ns)
+    assert run.thrusters.values[braking, :3].any()  # braking thrust, not a coast
+    refs = run.reference.t_ns >= stops[0].t_ns
+    assert refs.any()
+    assert not run.reference.values[refs].any()  # toward velocity zero
+    after = run.thrusters.t_ns >= rest.t_ns
     assert after.any()
     assert not run.thrusters.values[after, :3].any()
     assert run.thrusters.values[~after, :3].any()  # it was under way before

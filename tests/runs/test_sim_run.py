@@ -129,15 +129,17 @@ def test_layout_without_solution_stops_the_vessel(cache_dir: Path) -> None:
     assert EventCode.SYNTHESIS_FAILED.value in log.event_codes()
     assert not summary.docked
     failed_t = next(t for t, _, c, _ in log.events if c == EventCode.SYNTHESIS_FAILED.value)
-    # The run ends on the tick the failure is seen, with the reason, thrust zero.
-    assert log.events[-1][0] == failed_t
-    assert log.events[-1][2] == EventCode.ABORTED.value
+    # Aborted on the tick the failure is seen, with the reason; then braked to rest under
+    # the low level (velocity reference zero), and thrust zero only at rest.
+    aborted = [(t, c) for t, _, c, _ in log.events if c == EventCode.ABORTED.value]
+    assert aborted == [(failed_t, EventCode.ABORTED.value)]
     assert "synthesis failed" in summary.end_reason
-    assert not [t for t, _ in log.velocity_references if t > failed_t]
-    after = [c for c in log.thruster_commands if c.t_ns >= failed_t]
+    assert log.events[-1][2] == EventCode.AT_REST.value
+    rest_t = log.events[-1][0]
+    assert all(np.all(nu == 0.0) for t, nu in log.velocity_references if t >= failed_t)
+    after = [c for c in log.thruster_commands if c.t_ns >= rest_t]
     assert after
     assert all((c.tunnel, c.port, c.starboard) == (0.0, 0.0, 0.0) for c in after)
-    assert after[-1].t_ns - failed_t <= LOOP.period_ns
     assert summary.hull_contacts == 0
 
 
@@ -156,10 +158,12 @@ def test_start_outside_the_winning_set_stops_and_says_so(cache_dir: Path) -> Non
     )
     assert not summary.docked
     assert summary.not_winning_decisions == 1
-    assert log.event_codes()[-2:] == [EventCode.NOT_WINNING.value, EventCode.ABORTED.value]
+    assert log.event_codes()[-3:] == [
+        EventCode.NOT_WINNING.value, EventCode.ABORTED.value, EventCode.AT_REST.value
+    ]
     assert summary.end_reason.startswith("start [-0.4")
     assert "outside the winning set" in summary.end_reason
     # Stopped at the first decision (once the observer settled), not at the 10-s limit.
-    assert log.events[-1][0] < round((LOOP.observer_settle_s + 0.1) * 1e9)
+    assert log.events[-2][0] < round((LOOP.observer_settle_s + 0.1) * 1e9)
     assert all(np.all(nu == 0.0) for _, nu in log.velocity_references)
     assert math.isfinite(summary.min_clearance_m)

@@ -17,7 +17,7 @@ from hil.bag.recorder import Recorder
 from hil.core.samples import ImuSample, PoseSample, ThrusterCommand
 from hil.runs.sim_run import build_runtime, default_start, synthesizer_for
 from hil.runtime.assembly import layout_from_scenario
-from hil.runtime.loop import World
+from hil.runtime.loop import REST_HOLD_S, World
 from hil.runtime.resynthesis import ResynthesisMode
 from hil.runtime.settings import NS_PER_S, LoopConfig
 from hil.scenarios import load_scenario
@@ -88,8 +88,9 @@ def test_every_topic_is_on_the_run_clock(
     assert info.start_ns == start_ns
     assert first["/hil/obstacles"] == start_ns
     assert min(first.values()) == start_ns
-    # The span is the run's: 3 s limit, one tick past it, the final zero command.
+    # The span is the run's: 3 s limit, one tick past it, braking to rest (the vessel is
+    # at rest: REST_HOLD_S), the final zero command.
     assert info.duration_ns == stats.end_ns - start_ns
-    assert 3 * NS_PER_S < info.duration_ns < 3.2 * NS_PER_S
+    assert 3 * NS_PER_S < info.duration_ns < (3.2 + REST_HOLD_S) * NS_PER_S
     metadata = (out / "metadata.yaml").read_text()
     assert f'"nanoseconds_since_epoch": {start_ns}' in metadata
