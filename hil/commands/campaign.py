@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 from hil.commands.common import positive_seconds
@@ -37,6 +38,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--moving", type=float, default=0.5, metavar="FRACTION",
                         help="share of runs that start with a random body velocity, uniform "
                              "in the scenario's input box (default 0.5)")
+    parser.add_argument("--select", default="J", metavar="POLICY[,POLICY...]",
+                        help="which listed safe input each run flies: J (the paper's cost, "
+                             "default), random, largest-change, zigzag, fastest, mixed; "
+                             "comma-separated, the runs rotate through them (the guarantee "
+                             "is promised for every listed input: an adversary stresses it)")
     add_results_arguments(parser)
     parser.add_argument("--json", action="store_true",
                         help="end with the figures as one JSON object on the last line")
@@ -62,6 +68,7 @@ def run(args: argparse.Namespace) -> int:
         sim_job,
     )
     from hil.runs.errors import ExecutorError
+    from hil.runs.policies import policies_of
     from hil.runs.sim_run import SimRunSpec, synthesizer_for
     from hil.runtime.assembly import LayoutSolver, layout_from_scenario
     from hil.runtime.settings import LoopConfig
@@ -72,7 +79,8 @@ def run(args: argparse.Namespace) -> int:
         return 2
     try:
         require_backend(executor_choice(args))
-    except ExecutorError as err:
+        policies = policies_of(args.select)
+    except (ExecutorError, ValueError) as err:
         print(f"hil campaign: {err}", file=sys.stderr)
         return 2
     console = Console(stderr=args.json)
@@ -90,7 +98,8 @@ def run(args: argparse.Namespace) -> int:
     # Static obstacles: re-synthesis on a timer would recompute the same controller.
     base = SimRunSpec(scenario=args.scenario, loop=LoopConfig(
         resynthesis_period_s=None, max_duration_s=args.max_duration))
-    specs = campaign_specs(base, starts, seed0=args.seed, velocities=velocities)
+    specs = [replace(spec, select=policies[i % len(policies)]) for i, spec in
+             enumerate(campaign_specs(base, starts, seed0=args.seed, velocities=velocities))]
     job = sim_job("campaign", [args.scenario])
     ran = run_specs(args, "campaign", f"campaign-{Path(args.scenario).stem}", specs, job,
                     console, f"{scenario.name}: docking runs")

@@ -25,6 +25,7 @@ if TYPE_CHECKING:
     from rich.table import Table
 
     from hil.runs.campaign import CampaignResult, CampaignRun
+    from hil.runs.sim_run import SimRunSpec
 
 
 def _guarantee_rows(table: Table, groups: list[list[CampaignRun]]) -> None:
@@ -60,6 +61,24 @@ def _guarantee_rows(table: Table, groups: list[list[CampaignRun]]) -> None:
         table.add_row(label, *cells, "-")
     table.add_row("runs with a violation",
                   *(str(sum(g.violations > 0 for _, g in runs)) for runs in groups), "-")
+
+
+def _per_policy(runs: list[CampaignRun], specs: list[SimRunSpec]) -> dict[str, Any]:
+    """Return the figures of each selection policy's runs (``--select``), by name."""
+    from hil.runs.campaign import CampaignStats
+    from hil.runs.guarantee import GuaranteeViolations
+
+    out: dict[str, Any] = {}
+    for name in dict.fromkeys(spec.select for spec in specs):
+        mine = [run for run, spec in zip(runs, specs, strict=True) if spec.select == name]
+        stats = CampaignStats.of([summary for summary, _ in mine])
+        out[name] = {
+            **asdict(stats),
+            "winning_starts": stats.winning_starts,
+            "guarantee": asdict(GuaranteeViolations.total(g for _, g in mine)),
+            "runs_with_violations": sum(g.violations > 0 for _, g in mine),
+        }
+    return out
 
 
 def report(outcome: CampaignResult, *, command: str, title: str, console: Console,
@@ -115,6 +134,12 @@ def report(outcome: CampaignResult, *, command: str, title: str, console: Consol
         table.add_row(f"tracking RMS, {label}",
                       *(f"{s.tracking_rms[axis]:.5f}" for s in all_stats), f"{paper}")
     _guarantee_rows(table, groups)
+    policies = _per_policy(runs, specs)
+    if set(policies) != {"J"}:
+        for name, figures in policies.items():
+            table.add_row(f"--select {name}: docked / runs with a violation",
+                          f"{figures['docked']}/{figures['winning_starts']} / "
+                          f"{figures['runs_with_violations']}", "-", "-", "-")
     table.add_row("wall time per run", *(f"{s.wall_s_mean:.2f} s" for s in all_stats), "-")
     console.print(table)
     if outcome.resumed or outcome.retried:
@@ -125,6 +150,7 @@ def report(outcome: CampaignResult, *, command: str, title: str, console: Consol
         per_run = [{"seed": spec.seed, "scenario": spec.scenario, "start": list(spec.start or ()),
                     "start_velocity": None if spec.start_velocity is None
                     else list(spec.start_velocity),
+                    "select": spec.select,
                     "docked": summary.docked, "docking_time_s": summary.docking_time_s,
                     "guarantee": asdict(g)}
                    for spec, (summary, g) in zip(specs, runs, strict=True)]
@@ -140,6 +166,7 @@ def report(outcome: CampaignResult, *, command: str, title: str, console: Consol
                           "failed_runs": [{"run": f.index, "error": f.error, "spec": f.spec}
                                           for f in outcome.failures],
                           "results": None if results is None else str(results),
+                          "per_policy": _per_policy(runs, specs),
                           "per_run": per_run}))
     if outcome.stopped:
         print(f"hil {command}: {outcome.reason}: stopped after {len(runs)} of "

@@ -31,9 +31,9 @@ from hil.core.motion import ObstacleMotion, displacements_m
 from hil.core.records import Decision
 from hil.core.shapes import Shape
 from hil.runs.clearance import hull_corners
-from hil.runs.sim_run import Select, SimOutcome, SimRunSpec, simulate
+from hil.runs.policies import Select
+from hil.runs.sim_run import SimOutcome, SimRunSpec, simulate
 from hil.runs.summary import RunSummary
-from hil.runtime.assembly import select_index
 from hil.runtime.trace import MemoryLog
 from hil.scenarios import Scenario
 from hil.sim.plant import TR_ETA
@@ -303,9 +303,12 @@ def judge_outcome(spec: SimRunSpec, outcome: SimOutcome,
                      tick_s=1.0 / spec.loop.loop_hz)
 
 
-def judged_run(spec: SimRunSpec, select: Select = select_index
+def judged_run(spec: SimRunSpec, select: Select | None = None
                ) -> tuple[RunSummary, GuaranteeViolations]:
-    """Run `spec` in simulation (in memory) and judge it; picklable for a process pool."""
+    """Run `spec` in simulation (in memory) and judge it; picklable for a process pool.
+
+    `select`: the choice among the safe inputs; None: the spec's policy (``select``).
+    """
     log = MemoryLog()
     outcome = simulate(spec, log=log, select=select)
     return outcome.summary, judge_outcome(spec, outcome, log.decisions)

@@ -30,6 +30,7 @@ from hil.core.codec import from_jsonable, to_jsonable
 from hil.core.motion import displacements_m
 from hil.core.samples import ObstacleLayout
 from hil.model.environment import EnvironmentalLoad
+from hil.runs.policies import Select, policy
 from hil.runs.summary import RunSummary, summarize_run
 from hil.runtime.assembly import (
     EkfObserver,
@@ -78,6 +79,8 @@ class SimRunSpec:
             scenario's deviation budget was measured with).
         load: Environmental load b(t) on the simulated vessel (its Gauss-Markov noise
             seeded by the load's own seed); None: calm water, as in the tank.
+        select: The policy choosing among the listed safe inputs
+            (:data:`~hil.runs.policies.POLICIES`): the paper's "J", or an adversary's.
         synthesis_latency_s: Each synthesis takes this long on the simulated clock, one
             at a time, as a slower solver beside the loop would (s; 0: at once). The
             simulation of a vessel whose solver is slower than its obstacle reports.
@@ -97,6 +100,7 @@ class SimRunSpec:
     gains: PidGains | None = None
     load: EnvironmentalLoad | None = None
     synthesis_latency_s: float = 0.0
+    select: str = "J"
 
 
 def default_start(scenario: Scenario) -> tuple[float, float, float]:
@@ -122,8 +126,6 @@ def world_motions(scenario: Scenario, spec: SimRunSpec) -> tuple[ObstacleMotion,
     return scenario.simulation.motions + spec.motions
 
 
-Select = Callable[[FloatArray, FloatArray], int]
-"""Picks a row of the safe inputs (k, 3) given the previous input (3,)."""
 
 
 class RecordingSolver:
@@ -289,7 +291,7 @@ def run_in_sim(
 
 def simulate(
     spec: SimRunSpec, log: RunLog | None = None, live: LiveView | None = None,
-    select: Select = select_index, *, handle_signals: bool = False,
+    select: Select | None = None, *, handle_signals: bool = False,
 ) -> SimOutcome:
     """Run one docking in simulation; return its summary, world and controllers.
 
@@ -297,11 +299,15 @@ def simulate(
         spec: The run.
         log: Where to record when `spec.out_dir` is None (default: a fresh MemoryLog).
         live: Wraps the log for a live view; None shows nothing.
-        select: Choice among the safe inputs (tests force choices with it).
+        select: Choice among the safe inputs (tests force choices with it); None: the
+            spec's policy (:mod:`hil.runs.policies`; the paper's J by default).
         handle_signals: Route SIGINT/SIGTERM to a clean stop at the next tick.
     """
     wall_start = time.perf_counter()
     scenario = load_scenario(spec.scenario)
+    if select is None:
+        steps = np.array([scenario.surge.step, scenario.sway.step, scenario.yaw_rate.step])
+        select = policy(spec.select, spec.seed, steps)
     config = sim_config(spec, scenario)
     start = config.start
     sim = SimWorld(config, max_duration_s=spec.loop.max_duration_s + 10.0)
@@ -381,6 +387,7 @@ def spec_to_json(spec: SimRunSpec) -> dict[str, Any]:
         **({} if spec.gains is None else {"gains": to_jsonable(spec.gains)}),
         **({} if spec.load is None else {"load": to_jsonable(spec.load)}),
         **({"synthesis_latency_s": spec.synthesis_latency_s} if spec.synthesis_latency_s else {}),
+        **({"select": spec.select} if spec.select != "J" else {}),
     }
 
 
@@ -417,6 +424,7 @@ def spec_from_json(data: dict[str, Any]) -> SimRunSpec:
             load=None if data.get("load") is None
             else from_jsonable(EnvironmentalLoad, data["load"]),
             synthesis_latency_s=float(data.get("synthesis_latency_s", 0.0)),
+            select=str(data.get("select", "J")),
         )
     except (KeyError, TypeError, IndexError) as err:
         raise ValueError(f"malformed run specification {data!r}: {err!r}") from err
