@@ -55,6 +55,7 @@ from hil.replay.options import ReplayOptions
 from hil.replay.regression import Interval, LogReport
 from hil.replay.resim import check_resim
 from hil.replay.stack import check_stack
+from hil.replay.stop_check import check_stop
 from hil.replay.tracking_checks import check_tracking
 from hil.scenarios import ScenarioError
 
@@ -99,6 +100,8 @@ def replay_log(
         step("contract")
         judged = judge_intervals(run, controllers, scenario, checks)
         checks.append(check_contract(judged))
+        step("stop")
+        checks.append(check_stop(run, scenario))
         if options.intervals:
             intervals = judged
     except _REFUSED as err:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import signal
 from pathlib import Path
@@ -13,8 +14,13 @@ import hil.runs.sim_run
 from hil.bag.run_data import load_run
 from hil.cli import main
 from hil.core.records import Decision
+from hil.core.shapes import Rect
+from hil.replay.options import ReplayOptions
+from hil.replay.regression import Status
+from hil.replay.replayer import replay_log
+from hil.replay.stop_check import check_stop
 from hil.runtime.stack import RunLog
-from hil.scenarios import Scenario
+from hil.scenarios import Scenario, load_scenario
 
 
 class _CtrlCAtDecision:
@@ -70,6 +76,25 @@ def test_ctrl_c_stops_the_run_cleanly_and_its_log_replays_as_interrupted(
     assert after.any()
     assert not run.thrusters.values[after, :3].any()
     assert run.thrusters.values[~after, :3].any()  # it was under way before
-    # ... and it replays through the current code without a regression, as interrupted.
+    # ... and it replays through the current code without a regression, as interrupted,
+    # its braking judged clear of the obstacles and walls.
     assert main(["replay", str(out)]) == 0
-    assert "interrupted at" in capsys.readouterr().out
+    replayed = capsys.readouterr().out
+    assert "interrupted at" in replayed
+    assert "stop: braked to rest in" in replayed
+    report = replay_log(out, ReplayOptions())
+    stop = next(c for c in report.checks if c.name == "stop")
+    assert stop.status is Status.PASS
+    assert stop.metrics["samples"] > 10
+    # The same braking judged against an obstacle reported where the hull braked: FAIL.
+    eta = run.estimate.values[run.estimate.t_ns >= stops[0].t_ns][0, :3]
+    scenario = load_scenario("coarse")
+    blocked = dataclasses.replace(run, layouts=tuple(
+        dataclasses.replace(layout, rectangles=(
+            Rect(float(eta[0]) - 0.1, float(eta[0]) + 0.1, float(eta[1]) - 0.1,
+                 float(eta[1]) + 0.1),
+        )) for layout in run.layouts
+    ))
+    failed = check_stop(blocked, scenario)
+    assert failed.status is Status.FAIL
+    assert "from an obstacle" in failed.findings[0].message
