@@ -39,7 +39,7 @@ from hil.replay.decisions import BOUNDARY, TIE, Divergence, compare_rerun_decisi
 from hil.replay.options import ReplayOptions
 from hil.replay.regression import Check, Finding, Status, time_s
 from hil.replay.tracking_checks import tracking_findings
-from hil.runs.sim_run import build_runtime
+from hil.runs.sim_run import build_runtime, spec_from_json
 from hil.runtime.events import EventCode
 from hil.runtime.loop import Mode, World
 from hil.runtime.resynthesis import ResynthesisMode
@@ -164,7 +164,7 @@ def recorded_latency_s(run: RunData) -> float:
     if info is None or not info.run_spec:
         return 0.0
     try:
-        latency = float(json.loads(info.run_spec).get("synthesis_latency_s", 0.0))
+        latency = spec_from_json(json.loads(info.run_spec)).synthesis_latency_s
     except (ValueError, AttributeError, TypeError):
         return 0.0
     return latency if math.isfinite(latency) and latency > 0.0 else 0.0

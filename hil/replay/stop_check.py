@@ -20,6 +20,7 @@ from hil.bag.run_data import RunData
 from hil.replay.regression import Check, Finding, Status, time_s
 from hil.runtime.assembly import obstacles_from_layout
 from hil.runtime.events import EventCode
+from hil.runtime.settings import NS_PER_S
 from hil.scenarios import Scenario
 
 STOPS = frozenset({EventCode.STOPPED.value, EventCode.ABORTED.value, EventCode.TIMEOUT.value})
@@ -72,7 +73,7 @@ def check_stop(run: RunData, scenario: Scenario) -> Check:
                     {"obstacle_clearance_m": obstacle_m, "wall_clearance_m": wall_m},
                 )
             )
-    braked_s = (rest.t_ns - stop.t_ns) / 1e9
+    braked_s = (rest.t_ns - stop.t_ns) / NS_PER_S
     metrics = {
         "braked_s": braked_s,
         "samples": len(rows),
