@@ -608,15 +608,17 @@ class Runtime:
     def _stop(self, t_ns: int, code: EventCode, text: str) -> None:
         """End the run: brake to rest under the low level, or cut thrust where it cannot.
 
-        Without control there is nothing to brake (waiting for a controller, holding on a
-        lost pose, no estimate): thrust goes to zero at once, as it already is.
+        Braking needs only the estimate and the low level, so a vessel still waiting for
+        its first controller (a moving start) is braked too. Without a pose (holding on a
+        lost pose, no estimate yet) it cannot brake: thrust goes to zero at once, as it
+        already is.
         """
         self.stats.end_reason = text
         self.stats.aborted = code is EventCode.ABORTED
         self._event(
             t_ns, EventLevel.ERROR if code is not EventCode.STOPPED else EventLevel.INFO, code, text
         )
-        if self.mode in (Mode.WAITING, Mode.HOLD) or self.observer.estimate() is None:
+        if self.mode is Mode.HOLD or self.observer.estimate() is None:
             self._cut(t_ns)
             return
         self.mode = Mode.BRAKING

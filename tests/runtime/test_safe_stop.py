@@ -4,7 +4,7 @@ An operator's stop mid-run (what SIGINT / SIGTERM ask for) puts the velocity ref
 zero and keeps the low level flying it until the estimate is at rest for 1 s; only then
 do the thrusters go to zero (``at_rest``). On the simulator's true state the vessel is
 then at rest, not coasting. A second request while braking cuts the thrust at once (the
-emergency stop). Waiting for a controller there is nothing to brake: thrust stays zero.
+emergency stop).
 """
 
 from __future__ import annotations
