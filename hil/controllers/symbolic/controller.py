@@ -35,7 +35,7 @@ U64Array = NDArray[np.uint64]
 
 __all__ = ["Controller", "SynthesisStats"]
 
-_FORMAT = "hil-symbolic-controller-3"
+_FORMAT = "hil-symbolic-controller-4"
 _TABLE_FIELDS = ("succ", "heading", "tube_x0", "tube_n", "tube_y", "hull_psi", "yaw_index")
 
 
@@ -87,10 +87,11 @@ class Controller:
     Args:
         tables: The abstraction the controller was synthesized on.
         lattice: The inputs' one-step neighbourhoods.
-        winning: Winning bits, shape (m, nx + 2 px, npsi + 2 ph, nw + 2 pw).
-        planes: Value bit planes, shape (m, nx, npsi, nw, n_planes).
+        winning: Winning bits, shape (m, npsi, nw + 2 pw, nx + 2 px) (:mod:`kernels`).
+        planes: Value bit planes, shape (m, npsi, nw, n_planes, nx).
         viable: Tube-free bits per class, shape (3, m, nx, npsi, nw).
-        pads: (px, ph, pw) of `winning`.
+        pads: (px, ph, pw): `winning`'s padding px in x cells and pw in words (ph, the
+            frontier kernel's heading padding, is not used by this layout).
         obstacles: Cells touching an inflated obstacle, shape (nx, ny) (pictures).
         stats: Figures of the synthesis; `winning_cells` is filled in here.
     """
@@ -157,12 +158,12 @@ class Controller:
 
     @property
     def winning_words(self) -> U64Array:
-        """Return the winning bits, shape (m, nx + 2 px, npsi + 2 ph, nw + 2 pw) (do not write)."""
+        """Return the winning bits, shape (m, npsi, nw + 2 pw, nx + 2 px) (do not write)."""
         return self._W
 
     @property
     def value_planes(self) -> U64Array:
-        """Return the value bit planes, shape (m, nx, npsi, nw, n_planes) (do not write)."""
+        """Return the value bit planes, shape (m, npsi, nw, n_planes, nx) (do not write)."""
         return self._planes
 
     @property
@@ -172,7 +173,7 @@ class Controller:
 
     @property
     def pads(self) -> I32Array:
-        """Return (px, ph, pw), the padding of :attr:`winning_words` (cells, headings, words)."""
+        """Return (px, ph, pw), the padding of :attr:`winning_words` (x cells, unused, words)."""
         return self._pads
 
     @property
@@ -373,7 +374,8 @@ class Controller:
             m = tables.n_inputs
             if (
                 tables.succ.shape != (N_CLASSES, grid.npsi, m, 4)
-                or planes.shape[:4] != (m, grid.nx, grid.npsi, (grid.ny + 63) // 64)
+                or planes.shape[:3] != (m, grid.npsi, (grid.ny + 63) // 64)
+                or planes.shape[4] != grid.nx
                 or viable.shape != (N_CLASSES, m, grid.nx, grid.npsi, (grid.ny + 63) // 64)
                 or winning.shape[0] != m
             ):

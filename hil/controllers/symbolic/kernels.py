@@ -1,8 +1,9 @@
 """Compiled kernels of the controller: bit packing, values and the safe-input lookup.
 
-The winning sets and values are the synthesis' bit layout (:mod:`sweep`), layer-major:
-W of shape (m, nx + 2 px, npsi + 2 ph, nw + 2 pw), value bit planes of shape
-(m, nx, npsi, nw, n_planes) and viable words of shape (3, m, nx, npsi, nw).
+The winning sets and values are in the fixed point's own bit layout (:mod:`planes_kernel`),
+layer-major with x contiguous: W of shape (m, npsi, nw + 2 pw, nx + 2 px), value bit
+planes of shape (m, npsi, nw, n_planes, nx), so a finished solve hands its arrays over
+without a copy; viable words of shape (3, m, nx, npsi, nw).
 """
 
 from __future__ import annotations
@@ -39,18 +40,22 @@ def pack_rows(mask: BoolArray) -> U64Array:
 def state_value(
     W: U64Array, planes: U64Array, pads: I32Array, p: int, i: int, j: int, k: int
 ) -> int:
-    """Return the value of state (cell (i, j, k), reference p); -1 if losing or off the grid."""
-    _, nx, npsi, nw, n_planes = planes.shape
+    """Return the value of state (cell (i, j, k), reference p); -1 if losing or off the grid.
+
+    W (m, npsi, nw + 2 pw, nx + 2 px) and planes (m, npsi, nw, n_planes, nx) are in the
+    fixed point's own layout (:mod:`planes_kernel`); pads is (px, ph, pw), ph unused.
+    """
+    _, npsi, nw, n_planes, nx = planes.shape
     if i < 0 or i >= nx or j < 0 or j >= 64 * nw:
         return -1
     kk = k % npsi
     w = j >> 6
     b = np.uint64(j & 63)
-    if (W[p, pads[0] + i, pads[1] + kk, pads[2] + w] >> b) & _ONE == _ZERO:
+    if (W[p, kk, pads[2] + w, pads[0] + i] >> b) & _ONE == _ZERO:
         return -1
     v = 0
     for q in range(n_planes):
-        if (planes[p, i, kk, w, q] >> b) & _ONE != _ZERO:
+        if (planes[p, kk, w, q, i] >> b) & _ONE != _ZERO:
             v |= 1 << q
     return v
 
@@ -75,7 +80,7 @@ def state_values(
 @njit
 def layer_values(W: U64Array, planes: U64Array, pads: I32Array, p: int, ny: int) -> I32Array:
     """Return the values of layer p, shape (nx, ny, npsi); -1 marks losing cells."""
-    nx, npsi = planes.shape[1], planes.shape[2]
+    npsi, nx = planes.shape[1], planes.shape[4]
     out = np.full((nx, ny, npsi), -1, dtype=np.int32)
     for i in range(nx):
         for k in range(npsi):
@@ -113,7 +118,7 @@ def safe_input_indices(
     best[0] is set to 1 + the least, over the safe inputs, of their largest successor
     value (the value a first decision earns), -1 with none.
     """
-    npsi = planes.shape[2]
+    npsi = planes.shape[1]
     best[0] = -1
     vc = state_value(W, planes, pads, p, i, j, k)
     if not first and vc <= 0:

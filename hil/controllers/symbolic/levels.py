@@ -3,9 +3,10 @@
 A caller that watches a state can stop as soon as it joined: after each
 :meth:`LevelSolver.advance`, every state of value <= :attr:`LevelSolver.level` holds its
 final bit and value and no state of a larger value is set; :meth:`LevelSolver.export`
-returns them as new arrays in :mod:`sweep`'s layout (what the
-:class:`~hil.controllers.symbolic.controller.Controller` reads), so a snapshot stays valid
-while the solve goes on.
+returns them in the layout the :class:`~hil.controllers.symbolic.controller.Controller`
+reads: a copy of the winning bits (so a snapshot stays valid while the solve goes on)
+and the value planes themselves (a joined state's planes never change again; a later
+state's are hidden behind the copy's bits).
 """
 
 from __future__ import annotations
@@ -17,7 +18,6 @@ from numpy.typing import NDArray
 from hil.controllers.symbolic.planes_kernel import (
     advance_parallel,
     advance_serial,
-    export_layout,
     init_planes_state,
     solve_serial,
     transpose_viable,
@@ -63,10 +63,8 @@ class LevelSolver:
     ) -> None:
         nx, npsi, nw = goal.shape
         m = viable.shape[1]
-        px, ph, pw = (int(p) for p in pads)
+        px, _, pw = (int(p) for p in pads)
         self.pads = np.ascontiguousarray(pads, dtype=np.int32)
-        self._w_shape = (m, nx + 2 * px, npsi + 2 * ph, nw + 2 * pw)
-        self._p_shape = (m, nx, npsi, nw, n_planes)
         self._pt = np.zeros((m, npsi, nw, n_planes, nx), dtype=np.uint64)
         self._wt = np.zeros((m, npsi, nw + 2 * pw, nx + 2 * px), dtype=np.uint64)
         self._ch = np.empty((m, npsi, 2), dtype=np.int32)
@@ -158,11 +156,11 @@ class LevelSolver:
         return bool((word >> (j & 63)) & 1)
 
     def export(self) -> tuple[U64Array, U64Array]:
-        """Return (W, planes) of the states joined so far, new arrays in :mod:`sweep`'s layout.
+        """Return (W, planes) of the states joined so far, in the Controller's layout.
 
-        W: shape (m, nx + 2 px, npsi + 2 ph, nw + 2 pw); planes: (m, nx, npsi, nw, n_planes).
+        W: shape (m, npsi, nw + 2 pw, nx + 2 px), a copy while the solve may go on, the
+        solver's own array once :attr:`done`; planes: (m, npsi, nw, n_planes, nx), the
+        solver's own array (read-only to the caller; see the module's docstring).
         """
-        winning = np.zeros(self._w_shape, dtype=np.uint64)
-        planes = np.empty(self._p_shape, dtype=np.uint64)
-        export_layout(self._wt, self._pt, self.pads, winning, planes)
-        return winning, planes
+        winning = self._wt if self.done else self._wt.copy()
+        return winning, self._pt

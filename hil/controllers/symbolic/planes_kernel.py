@@ -16,9 +16,11 @@ Layout (x contiguous, so every step is a vector operation over a band of x rows)
   last level (lo > hi: none); ``band_a``, ``band_b`` (m, npsi, 2): the x range of the
   rows of nA / nB that hold any bit.
 - ``Pt`` (m, npsi, nw, n_planes, nx): value bit planes (bit q of a state's value is its
-  bit in plane q). :func:`export_layout` writes Wt and Pt in :mod:`sweep`'s layout (what
-  the Controller reads): one pass at the end (or at a snapshot) instead of a scattered
-  write per joining word, which cost about as much as the rest of the level.
+  bit in plane q). Wt and Pt are the layout the Controller reads
+  (:mod:`kernels`), so a finished solve hands them over without a copy, and an early
+  controller needs only a copy of Wt: the planes' bits of a state joined so far are final,
+  and those of later states stay hidden behind its Wt. :func:`from_sweep_layout` brings
+  :mod:`sweep`'s result into this layout.
 
 One level: for each input u and heading k, each class c's successor box
 [ox0, ox1] x [oy0, oy1] x [h0, h1] is tested separably on the x band whose boxes reach a
@@ -52,7 +54,7 @@ I32Array = NDArray[np.int32]
 __all__ = [
     "advance_parallel",
     "advance_serial",
-    "export_layout",
+    "from_sweep_layout",
     "init_planes_state",
     "nested_classes",
     "solve_serial",
@@ -591,26 +593,21 @@ def solve_serial(
 
 
 @njit
-def export_layout(
-    Wt: U64Array, Pt: U64Array, pads: I32Array, W: U64Array, planes: U64Array
+def from_sweep_layout(
+    W: U64Array, planes: U64Array, pads: I32Array, Wt: U64Array, Pt: U64Array
 ) -> None:
-    """Write Wt and Pt into :mod:`sweep`'s W (m, nx + 2 px, npsi + 2 ph, nw + 2 pw) and planes.
+    """Write :mod:`sweep`'s result into this kernel's layout (the Controller's).
 
-    W's heading padding rows copy the rows they wrap to; its other padding is left as is
-    (zero). planes has shape (m, nx, npsi, nw, n_planes).
+    W (m, nx + 2 px, npsi + 2 ph, nw + 2 pw) and planes (m, nx, npsi, nw, n_planes) into
+    Wt (m, npsi, nw + 2 pw, nx + 2 px) and Pt (m, npsi, nw, n_planes, nx); Wt's padding
+    is left as is (zero).
     """
-    m, npsi, _, _ = Wt.shape
-    _, nx, _, nw, n_planes = planes.shape
+    m, nx, npsi, nw, n_planes = planes.shape
     px, ph, pw = pads[0], pads[1], pads[2]
     for p in range(m):
         for i in range(nx):
-            for kp in range(W.shape[2]):
-                k = (kp - ph) % npsi
+            for k in range(npsi):
                 for w in range(nw):
-                    W[p, px + i, kp, pw + w] = Wt[p, k, pw + w, px + i]
-        for k in range(npsi):
-            for w in range(nw):
-                for q in range(n_planes):
-                    src = Pt[p, k, w, q]
-                    for i in range(nx):
-                        planes[p, i, k, w, q] = src[i]
+                    Wt[p, k, pw + w, px + i] = W[p, px + i, ph + k, pw + w]
+                    for q in range(n_planes):
+                        Pt[p, k, w, q, i] = planes[p, i, k, w, q]

@@ -61,7 +61,7 @@ __all__ = [
 BoolArray = NDArray[np.bool_]
 U64Array = NDArray[np.uint64]
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
 """Layout of a file (header, arrays, checksum); a file of another version is deleted."""
 
 DEFAULT_BUDGET_MB = 4096
@@ -122,9 +122,9 @@ class SolvedLayout:
     """What the fixed point computed for one layout (what a file holds).
 
     Attributes:
-        winning: Winning bits without padding, shape (m, nx, npsi, nw) (bit b of word w
-            of row (i, k) in layer p: cell (i, 64 w + b, k) wins with reference p).
-        planes: Value bit planes, shape (m, nx, npsi, nw, n_planes).
+        winning: Winning bits without padding, shape (m, npsi, nw, nx) (bit b of word w
+            at (k, i) in layer p: cell (i, 64 w + b, k) wins with reference p).
+        planes: Value bit planes, shape (m, npsi, nw, n_planes, nx).
         viable: Tube-free words per class, shape (3, m, nx, npsi, nw) (stored: reading
             them is cheaper than rebuilding them from the masks).
         levels: Fixed-point iterations of the solve.
@@ -195,16 +195,13 @@ class ControllerStore:
         """Return the file of `key`."""
         return self.folder / f"{key}{_SUFFIX}"
 
-    def load(
-        self, key: str, shape: tuple[int, int, int, int], n_planes: int, n_classes: int
-    ) -> SolvedLayout | None:
+    def load(self, key: str, shapes: tuple[tuple[int, ...], ...]) -> SolvedLayout | None:
         """Return the layout stored under `key`, or None (missing, corrupt, stale: deleted).
 
         Args:
             key: :func:`solve_key` of the problem.
-            shape: (m, nx, npsi, nw) the winning words must have.
-            n_planes: Value bit planes the solver keeps.
-            n_classes: Budget classes of the viable words.
+            shapes: The shapes the winning words, the value planes and the viable words
+                must have (:class:`SolvedLayout`).
         """
         if not self.enabled:
             return None
@@ -213,7 +210,7 @@ class ControllerStore:
             data = path.read_bytes()
         except OSError:
             return None
-        solved = _decode(data, key, (shape, (*shape, n_planes), (n_classes, *shape)))
+        solved = _decode(data, key, shapes)
         if solved is None:
             _unlink(path)
             return None

@@ -22,10 +22,10 @@ from numpy.typing import NDArray
 from hil.controllers.symbolic.abstraction import N_CLASSES, Tables
 from hil.controllers.symbolic.controller import Controller, SynthesisStats
 from hil.controllers.symbolic.errors import GridError, NoWinningSetError
-from hil.controllers.symbolic.kernels import pack_rows, state_value
+from hil.controllers.symbolic.kernels import pack_rows
 from hil.controllers.symbolic.lattice import InputLattice
 from hil.controllers.symbolic.levels import LevelSolver
-from hil.controllers.symbolic.planes_kernel import nested_classes
+from hil.controllers.symbolic.planes_kernel import from_sweep_layout, nested_classes
 from hil.controllers.symbolic.problem import SymbolicProblem
 from hil.controllers.symbolic.store import ControllerStore, SolvedLayout, solve_key
 from hil.controllers.symbolic.sweep import (
@@ -112,10 +112,15 @@ class Watch:
     cell: tuple[int, int, int]
     reference: int
 
-    def covered_by(self, winning: U64Array, planes: U64Array, pads: I32Array) -> bool:
-        """Return whether the state has joined the winning set held in `winning`."""
+    def covered_by(self, winning: U64Array, pads: I32Array) -> bool:
+        """Return whether the state has joined `winning`, in :mod:`sweep`'s layout.
+
+        winning: shape (m, nx + 2 px, npsi + 2 ph, nw + 2 pw); pads (px, ph, pw).
+        """
         i, j, k = self.cell
-        return bool(state_value(winning, planes, pads, self.reference, i, j, k) >= 0)
+        px, ph, pw = (int(p) for p in pads)
+        word = int(winning[self.reference, px + i, ph + k, pw + (j >> 6)])
+        return bool((word >> (j & 63)) & 1)
 
 
 def _max_threads() -> int:
@@ -364,15 +369,15 @@ class Synthesizer:
         nx, ny, npsi = self._tables.grid.shape
         m = self._tables.n_inputs
         start = time.perf_counter()
-        solved = store.load(key, (m, nx, npsi, (ny + 63) // 64), N_PLANES, N_CLASSES)
+        nw = (ny + 63) // 64
+        solved = store.load(
+            key, ((m, npsi, nw, nx), (m, npsi, nw, N_PLANES, nx), (N_CLASSES, m, nx, npsi, nw))
+        )
         if solved is None:
             return None
-        px, ph, pw = (int(p) for p in self._pads)
-        nw = solved.winning.shape[3]
-        W = np.zeros((m, nx + 2 * px, npsi + 2 * ph, nw + 2 * pw), dtype=np.uint64)
-        # Heading padding rows repeat the rows they wrap to (the layout the kernels keep).
-        for kp in range(npsi + 2 * ph):
-            W[:, px : px + nx, kp, pw : pw + nw] = solved.winning[:, :, (kp - ph) % npsi, :]
+        px, _, pw = (int(p) for p in self._pads)
+        W = np.zeros((m, npsi, nw + 2 * pw, nx + 2 * px), dtype=np.uint64)
+        W[:, :, pw : pw + nw, px : px + nx] = solved.winning
         return Controller(
             self._tables, self._lattice, W, solved.planes, solved.viable, self._pads,
             obstacles.astype(bool), SynthesisStats(
@@ -389,11 +394,11 @@ class Synthesizer:
         the file (an interrupted write leaves only a temporary file).
         """
         W, pads = controller.winning_words, controller.pads
-        px, ph, pw = (int(p) for p in pads)
-        nx, ny, npsi = self._tables.grid.shape
+        px, _, pw = (int(p) for p in pads)
+        nx, ny, _ = self._tables.grid.shape
         s = controller.stats
         solved = SolvedLayout(
-            W[:, px : px + nx, ph : ph + npsi, pw : pw + (ny + 63) // 64],
+            W[:, :, pw : pw + (ny + 63) // 64, px : px + nx],
             controller.value_planes, controller.viable_words, s.levels, s.seconds, s.threads,
         )  # fmt: skip
         thread = threading.Thread(
@@ -504,13 +509,12 @@ class Synthesizer:
             changed = start_levels(W, planes, self._reach, self._h_reach, chmask, umask)
             watching = watch is not None
             while True:
-                if watching and watch is not None and watch.covered_by(W, planes, self._pads):
+                if watching and watch is not None and watch.covered_by(W, self._pads):
                     watching = False
                     if changed > 0:
                         # States of value <= level are final; the solve goes on in W, so
-                        # the early controller keeps its own copy of the winning bits
-                        # (the planes' bits of later states stay hidden behind them).
-                        yield W.copy(), planes, level, False
+                        # the early controller keeps its own copy.
+                        yield (*self._planes_layout(W, planes), level, False)
                 if changed == 0:
                     break
                 if level + 1 > 2**N_PLANES - 1:
@@ -521,7 +525,16 @@ class Synthesizer:
         finally:
             if threads > 1:
                 numba.set_num_threads(previous)
-        yield W, planes, level, True
+        yield (*self._planes_layout(W, planes), level, True)
+
+    def _planes_layout(self, W: U64Array, planes: U64Array) -> tuple[U64Array, U64Array]:
+        """Return :mod:`sweep`'s W and planes as new arrays in the Controller's layout."""
+        m, nx, npsi, nw, n_planes = planes.shape
+        px, _, pw = (int(p) for p in self._pads)
+        winning = np.zeros((m, npsi, nw + 2 * pw, nx + 2 * px), dtype=np.uint64)
+        values = np.empty((m, npsi, nw, n_planes, nx), dtype=np.uint64)
+        from_sweep_layout(W, planes, self._pads, winning, values)
+        return winning, values
 
     def _planes_stages(
         self, solver: LevelSolver, watch: Watch | None

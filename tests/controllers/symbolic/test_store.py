@@ -212,8 +212,13 @@ def _layout(seed: int, size: int = 4, noise: bool = False) -> SolvedLayout:
     )
 
 
+def _shapes(shape: tuple[int, ...]) -> tuple[tuple[int, ...], ...]:
+    """Return the shapes of a :func:`_layout`'s winning words, planes and viable words."""
+    return shape, (*shape, 8), (3, *shape)
+
+
 def _load(store: ControllerStore, key: str) -> SolvedLayout | None:
-    return store.load(key, (3, 4, 4, 1), 8, 3)
+    return store.load(key, _shapes((3, 4, 4, 1)))
 
 
 def test_the_least_recently_used_files_go_first(tmp_path: Path) -> None:
@@ -264,7 +269,7 @@ def test_a_stored_layout_reads_back_bit_for_bit(
         assert b.flags.aligned
         assert b.flags.c_contiguous
     assert (read.levels, read.solve_seconds, read.threads) == (7, 1.0, 1)
-    assert store.load("k", (3, 4, 4, 2), 8, 3) is None  # other shapes: stale, deleted
+    assert store.load("k", _shapes((3, 4, 4, 2))) is None  # other shapes: stale, deleted
     assert not store.path("k").exists()
     store.save("k", written)
     store.path("k").rename(store.path("j"))
@@ -289,14 +294,14 @@ def test_processes_writing_one_key_leave_a_whole_file(tmp_path: Path) -> None:
     reads = 0
     while any(w.is_alive() for w in writers):
         if store.path("same").exists():
-            got = store.load("same", (3, 64, 64, 1), 8, 3)
+            got = store.load("same", _shapes((3, 64, 64, 1)))
             assert got is not None, "a reader saw a partial or damaged file"
             reads += 1
     for w in writers:
         w.join()
         assert w.exitcode == 0
     assert reads > 0
-    got = store.load("same", (3, 64, 64, 1), 8, 3)
+    got = store.load("same", _shapes((3, 64, 64, 1)))
     assert got is not None
     assert got.levels == 3
     assert [p.name for p in tmp_path.iterdir()] == ["same.ctl"]  # no temporary file left
