@@ -39,12 +39,25 @@ def positive_seconds(text: str) -> float:
     Raises:
         argparse.ArgumentTypeError: Naming the value.
     """
+    return _positive(text, "a positive number of seconds")
+
+
+def positive_factor(text: str) -> float:
+    """Parse a factor that must be a finite number above zero.
+
+    Raises:
+        argparse.ArgumentTypeError: Naming the value.
+    """
+    return _positive(text, "a positive factor")
+
+
+def _positive(text: str, what: str) -> float:
     try:
         value = float(text)
     except ValueError:
         value = math.nan
     if not (math.isfinite(value) and value > 0.0):
-        raise argparse.ArgumentTypeError(f"needs a positive number of seconds, got {text!r}")
+        raise argparse.ArgumentTypeError(f"needs {what}, got {text!r}")
     return value
 
 

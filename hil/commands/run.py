@@ -19,6 +19,7 @@ from hil.commands.common import (
     EXIT_DOCKED,
     EXIT_NOT_DOCKED,
     missing_display,
+    positive_factor,
     positive_seconds,
     start_pose,
 )
@@ -51,6 +52,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         metavar="S", help="model a slower solver: each synthesis takes S "
                         "simulated seconds, one at a time, as beside the vessel's loop "
                         "(default: at once)")
+    parser.add_argument("--pose-noise-scale", type=positive_factor, default=1.0, metavar="K",
+                        help="the simulated motion capture K times noisier than the 1 mm / "
+                        "0.1 deg the EKF assumes (above 1 the estimation premise breaks and "
+                        "the consistency watch should stop the vessel)")
     parser.add_argument("--json", action="store_true",
                         help="end with the summary as one JSON object on the last line")
 
@@ -100,7 +105,8 @@ def run(args: argparse.Namespace) -> int:
         out = args.out or Path("runs") / f"{name}-seed{args.seed}-{stamp}"
     spec = SimRunSpec(scenario=args.scenario, seed=args.seed, start=args.start, out_dir=out,
                       loop=LoopConfig(max_duration_s=args.max_duration),
-                      synthesis_latency_s=args.synthesis_latency or 0.0)
+                      synthesis_latency_s=args.synthesis_latency or 0.0,
+                      pose_noise_scale=args.pose_noise_scale)
     live = None if args.rerun is None else _live_rerun(args.rerun)
     try:
         with console.status(f"docking in the {name} scenario (seed {args.seed})..."):

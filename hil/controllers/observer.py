@@ -72,6 +72,7 @@ __all__ = [
     "ObserverCounters",
     "ObserverEstimate",
     "ObserverStatus",
+    "PoseInnovation",
 ]
 
 
@@ -280,6 +281,23 @@ class ObserverEstimate:
 
 
 @dataclass(frozen=True, slots=True)
+class PoseInnovation:
+    """One pose against the filter's prior at its stamp (what its gate judged).
+
+    Attributes:
+        nis: Normalized innovation squared y^T S^-1 y (chi-square, 3 dof, for a
+            consistent filter; the gate refuses above ``gate_pose_chi2``); NaN when the
+            pose was refused before its gate, inf when S was not positive definite.
+        position_m: |(z - x_hat, z - y_hat)| (m).
+        heading_rad: |z_psi - psi_hat| (rad, wrapped).
+    """
+
+    nis: float
+    position_m: float
+    heading_rad: float
+
+
+@dataclass(frozen=True, slots=True)
 class ObserverCounters:
     """How many samples the observer fused and refused, by reason."""
 
@@ -427,8 +445,9 @@ class Ekf:
             limit = self._config.max_abs_position_m
             if abs(x_m) <= limit and abs(y_m) <= limit:
                 self.initialize(t_ns, np.array([x_m, y_m, yaw_rad]))
-                # The start itself is the fused pose.
+                # The start itself is the fused pose (no prior: no innovation).
                 self._a.counters[C_POSE_FUSED] += 1
+                self._a.innovation[:] = np.nan
                 return ObserverStatus.FUSED
         return ObserverStatus(obs_pose(self._a, int(t_ns), x_m, y_m, yaw_rad))
 
@@ -466,6 +485,11 @@ class Ekf:
                 f"cannot predict back to t_ns={t_ns!r}: the filter is at {self.time_ns!r}"
             )
         return _estimate(int(t_ns), x, P)
+
+    def last_innovation(self) -> PoseInnovation:
+        """Return the innovation of the last pose against its prior (NaN: none computed)."""
+        nis, position_m, heading_rad = (float(v) for v in self._a.innovation)
+        return PoseInnovation(nis, position_m, heading_rad)
 
     def counters(self) -> ObserverCounters:
         """Return the sample counters so far."""

@@ -93,6 +93,10 @@ class EkfArrays(NamedTuple):
             poses gated in a row.
         counters: Sample counters, (N_COUNTERS,), int64, ``C_*`` indexing.
         params: Noise, gates and limits, (N_PARAMS,), ``P_*`` indexing.
+        innovation: The last pose's innovation against its prior, (3,): normalized
+            innovation squared, |position| (m), |heading| (rad)
+            (:func:`~hil.controllers.observer_math.pose_innovation`); NaN when that
+            pose was refused before its gate (non-finite, absurd, too old, duplicate).
     """
 
     x: FloatArray
@@ -105,6 +109,7 @@ class EkfArrays(NamedTuple):
     meta: IntArray
     counters: IntArray
     params: FloatArray
+    innovation: FloatArray
 
 
 def allocate_arrays(params: FloatArray, history_len: int) -> EkfArrays:
@@ -129,4 +134,5 @@ def allocate_arrays(params: FloatArray, history_len: int) -> EkfArrays:
         meta=np.zeros(4, dtype=np.int64),
         counters=np.zeros(N_COUNTERS, dtype=np.int64),
         params=np.array(params, dtype=np.float64, copy=True),
+        innovation=np.full(3, np.nan),
     )

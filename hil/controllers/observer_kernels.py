@@ -73,6 +73,7 @@ from hil.controllers.observer_math import (
     _update_pose,
     ekf_predict,
     ekf_update_yaw_rate,
+    pose_innovation,
 )
 from hil.controllers.observer_ring import (
     M_COUNT,
@@ -254,6 +255,7 @@ def obs_pose(a: EkfArrays, t_ns: int, x_m: float, y_m: float, psi_rad: float) ->
         a.meta,
         a.counters,
         a.params,
+        a.innovation,
         t_ns,
         x_m,
         y_m,
@@ -273,12 +275,14 @@ def _pose_event(
     meta: IntArray,
     c: IntArray,
     prm: FloatArray,
+    innov: FloatArray,
     t_ns: int,
     x_m: float,
     y_m: float,
     psi_rad: float,
 ) -> int:
-    """Do :func:`obs_pose` on the arrays one by one."""
+    """Do :func:`obs_pose` on the arrays one by one (innov: the pose's innovation)."""
+    innov[0] = innov[1] = innov[2] = math.nan
     if not (math.isfinite(x_m) and math.isfinite(y_m) and math.isfinite(psi_rad)):
         c[C_POSE_NONFINITE] += 1
         return S_NONFINITE
@@ -310,6 +314,7 @@ def _pose_event(
     gate = prm[P_GATE_POSE]
     if same_stamp and j == count - 1:
         # Fast path: a pose at the filter time updates the posterior in place.
+        pose_innovation(x, P, x_m, y_m, psi, rx, ry, rpsi, innov)
         if not _update_pose(x, P, x_m, y_m, psi, rx, ry, rpsi, gate):
             return _gated(x, P, ht, hx, hc, hu, hz, meta, c, prm, x_m, y_m, psi)
         p = pj
@@ -322,6 +327,7 @@ def _pose_event(
         P_save = P.copy()
         load_prior(hx, hc, pj, x, P)
         fuse_stored(x, P, hz, pj, prm)
+        pose_innovation(x, P, x_m, y_m, psi, rx, ry, rpsi, innov)
         if not _update_pose(x, P, x_m, y_m, psi, rx, ry, rpsi, gate):
             x[:] = x_save
             P[:, :] = P_save
@@ -337,6 +343,7 @@ def _pose_event(
         prior_at(x, P, ht, hx, hc, hu, hz, meta, prm, j, t_ns, xs, Ps)
         xg = xs.copy()
         Pg = Ps.copy()
+        pose_innovation(xs, Ps, x_m, y_m, psi, rx, ry, rpsi, innov)
         if not _update_pose(xg, Pg, x_m, y_m, psi, rx, ry, rpsi, gate):
             return _gated(x, P, ht, hx, hc, hu, hz, meta, c, prm, x_m, y_m, psi)
         j = make_room(meta, k_len, j)

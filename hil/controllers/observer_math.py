@@ -197,6 +197,83 @@ def _predict_step(
 
 
 @njit
+def _s_inverse(
+    P: FloatArray, rx: float, ry: float, rpsi: float
+) -> tuple[bool, float, float, float, float, float, float]:
+    """Return (ok, i00, i01, i02, i11, i12, i22): S^-1 of a pose, S = P[:3, :3] + R.
+
+    By cofactors of the symmetric 3 x 3 S; ok is False when S is not positive
+    definite (or not finite).
+    """
+    s00 = P[0, 0] + rx
+    s11 = P[1, 1] + ry
+    s22 = P[2, 2] + rpsi
+    s01 = P[0, 1]
+    s02 = P[0, 2]
+    s12 = P[1, 2]
+    c00 = s11 * s22 - s12 * s12
+    c01 = s02 * s12 - s01 * s22
+    c02 = s01 * s12 - s02 * s11
+    det = s00 * c00 + s01 * c01 + s02 * c02
+    if not (det > 0.0 and math.isfinite(det)):
+        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    c11 = s00 * s22 - s02 * s02
+    c12 = s01 * s02 - s00 * s12
+    c22 = s00 * s11 - s01 * s01
+    inv = 1.0 / det
+    return True, c00 * inv, c01 * inv, c02 * inv, c11 * inv, c12 * inv, c22 * inv
+
+
+@njit
+def _innovation(
+    x: FloatArray, P: FloatArray, zx: float, zy: float, zpsi: float,
+    rx: float, ry: float, rpsi: float,
+) -> tuple[bool, float, float, float, float, float, float, float, float, float, float]:
+    """Return (ok, y0, y1, y2, i00, i01, i02, i11, i12, i22, d2) of a finite pose z.
+
+    y = z - H x (y_psi wrapped), the entries of S^-1 (:func:`_s_inverse`) and
+    d2 = y^T S^-1 y; ok False (d2 inf) when S is not positive definite.
+    """
+    y0 = zx - x[I_X]
+    y1 = zy - x[I_Y]
+    y2 = wrap_angle(zpsi - x[I_PSI])
+    ok, i00, i01, i02, i11, i12, i22 = _s_inverse(P, rx, ry, rpsi)
+    if not ok:
+        return False, y0, y1, y2, i00, i01, i02, i11, i12, i22, math.inf
+    w0 = i00 * y0 + i01 * y1 + i02 * y2
+    w1 = i01 * y0 + i11 * y1 + i12 * y2
+    w2 = i02 * y0 + i12 * y1 + i22 * y2
+    return True, y0, y1, y2, i00, i01, i02, i11, i12, i22, y0 * w0 + y1 * w1 + y2 * w2
+
+
+@njit
+def pose_innovation(
+    x: FloatArray,
+    P: FloatArray,
+    zx: float,
+    zy: float,
+    zpsi: float,
+    rx: float,
+    ry: float,
+    rpsi: float,
+    out: FloatArray,
+) -> None:
+    """Write a pose's innovation against the prior (x, P) to out, shape (3,).
+
+    out[0]: the normalized innovation squared y^T S^-1 y (the gate's d^2; chi-square
+    with 3 dof for a consistent filter; inf when S is not positive definite);
+    out[1]: |(y_x, y_y)| (m); out[2]: |y_psi| (rad, wrapped). NaN for a non-finite z.
+    """
+    if not (math.isfinite(zx) and math.isfinite(zy) and math.isfinite(zpsi)):
+        out[0] = out[1] = out[2] = math.nan
+        return
+    _, y0, y1, y2, _, _, _, _, _, _, d2 = _innovation(x, P, zx, zy, zpsi, rx, ry, rpsi)
+    out[0] = d2
+    out[1] = math.sqrt(y0 * y0 + y1 * y1)
+    out[2] = abs(y2)
+
+
+@njit
 def ekf_update_pose(
     x: FloatArray, P: FloatArray, z: FloatArray, r_diag: FloatArray, gate_chi2: float
 ) -> bool:
@@ -235,37 +312,10 @@ def _update_pose(
     """Do :func:`ekf_update_pose` on scalars (no temporary arrays for z and R)."""
     if not (math.isfinite(zx) and math.isfinite(zy) and math.isfinite(zpsi)):
         return False
-    y0 = zx - x[I_X]
-    y1 = zy - x[I_Y]
-    y2 = wrap_angle(zpsi - x[I_PSI])
-    s00 = P[0, 0] + rx
-    s11 = P[1, 1] + ry
-    s22 = P[2, 2] + rpsi
-    s01 = P[0, 1]
-    s02 = P[0, 2]
-    s12 = P[1, 2]
-    # Inverse of the symmetric 3 x 3 S by cofactors.
-    c00 = s11 * s22 - s12 * s12
-    c01 = s02 * s12 - s01 * s22
-    c02 = s01 * s12 - s02 * s11
-    det = s00 * c00 + s01 * c01 + s02 * c02
-    if not (det > 0.0 and math.isfinite(det)):
-        return False
-    c11 = s00 * s22 - s02 * s02
-    c12 = s01 * s02 - s00 * s12
-    c22 = s00 * s11 - s01 * s01
-    inv = 1.0 / det
-    i00 = c00 * inv
-    i01 = c01 * inv
-    i02 = c02 * inv
-    i11 = c11 * inv
-    i12 = c12 * inv
-    i22 = c22 * inv
-    w0 = i00 * y0 + i01 * y1 + i02 * y2
-    w1 = i01 * y0 + i11 * y1 + i12 * y2
-    w2 = i02 * y0 + i12 * y1 + i22 * y2
-    d2 = y0 * w0 + y1 * w1 + y2 * w2
-    if not (d2 <= gate_chi2):
+    ok, y0, y1, y2, i00, i01, i02, i11, i12, i22, d2 = _innovation(
+        x, P, zx, zy, zpsi, rx, ry, rpsi
+    )
+    if not ok or not (d2 <= gate_chi2):
         return False
     # K = PH S^-1 with PH = P[:, :3]. x first; then only the upper triangle of P
     # is written, row by row: P[i, j] -= K_i . PH_j, where PH_j = P[j, :3] for

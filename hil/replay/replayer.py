@@ -49,6 +49,7 @@ from hil.bag.run_data import RunData, load_run
 from hil.controllers.symbolic import SymbolicError
 from hil.replay.controllers import ScenarioCache, ScenarioMismatchError, resolve_scenario
 from hil.replay.decisions import check_decisions
+from hil.replay.estimation_check import check_estimation
 from hil.replay.intervals import check_contract, judge_intervals
 from hil.replay.lab import NOT_JUDGED, lab_topics, replay_lab, require_pose
 from hil.replay.options import ReplayOptions
@@ -102,6 +103,8 @@ def replay_log(
         checks.append(check_contract(judged))
         step("stop")
         checks.append(check_stop(run, scenario))
+        step("estimation")
+        checks.append(check_estimation(run, scenario))
         if options.intervals:
             intervals = judged
     except _REFUSED as err:

@@ -84,6 +84,10 @@ class SimRunSpec:
         synthesis_latency_s: Each synthesis takes this long on the simulated clock, one
             at a time, as a slower solver beside the loop would (s; 0: at once). The
             simulation of a vessel whose solver is slower than its obstacle reports.
+        pose_noise_scale: The simulated motion capture's noise stds times this (> 0; 1:
+            the defaults, 1 mm and 0.1 deg, which the EKF and the estimation bound
+            assume). Above 1 the estimation premise breaks: the run for the
+            consistency watch (:mod:`hil.controllers.consistency`).
     """
 
     scenario: str = "paper"
@@ -101,6 +105,11 @@ class SimRunSpec:
     load: EnvironmentalLoad | None = None
     synthesis_latency_s: float = 0.0
     select: str = "J"
+    pose_noise_scale: float = 1.0
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.pose_noise_scale) and self.pose_noise_scale > 0.0):
+            raise ValueError(f"pose_noise_scale must be > 0, got {self.pose_noise_scale!r}")
 
 
 def default_start(scenario: Scenario) -> tuple[float, float, float]:
@@ -197,7 +206,10 @@ def build_runtime(
     resynthesizer: Resynthesizer[SymbolicController] = Resynthesizer(
         solve, mode, stages=layout_solver.stages if solver is None else None,
         latency_s=synthesis_latency_s, clock=world.clock.now_ns)
-    return Runtime(world, EkfObserver(start_nu=start_nu), low_level_for(loop.loop_hz, gains),
+    observer = EkfObserver(
+        start_nu=start_nu, estimation_bound_m=scenario.transient.estimation_position_m
+    )
+    return Runtime(world, observer, low_level_for(loop.loop_hz, gains),
                    resynthesizer, select, log, loop, scenario_hash(scenario),
                    estimation_position_m=scenario.transient.estimation_position_m,
                    report_ages=report_ages_of(scenario))
@@ -225,11 +237,21 @@ def sim_config(spec: SimRunSpec, scenario: Scenario) -> SimConfig:
         obstacles=layout_from_scenario(scenario).obstacles,
         motions=world_motions(scenario, spec),
         obstacle_report_period_s=scenario.simulation.obstacle_report_period_s,
-        pose=PoseSensorConfig(scheduled_dropouts_s=spec.pose_outages_s),
+        pose=_pose_sensor(spec),
         thruster_outages=spec.thruster_outages,
         loop_stalls_s=spec.loop_stalls_s,
         load=spec.load if spec.load is not None else EnvironmentalLoad(),
     )
+
+
+def _pose_sensor(spec: SimRunSpec) -> PoseSensorConfig:
+    default = PoseSensorConfig()
+    k = spec.pose_noise_scale
+    return replace(
+        default, scheduled_dropouts_s=spec.pose_outages_s,
+        noise_std_x_m=k * default.noise_std_x_m, noise_std_y_m=k * default.noise_std_y_m,
+        noise_std_yaw_rad=k * default.noise_std_yaw_rad,
+    )  # fmt: skip
 
 
 def synthesizer_for(
@@ -388,6 +410,7 @@ def spec_to_json(spec: SimRunSpec) -> dict[str, Any]:
         **({} if spec.load is None else {"load": to_jsonable(spec.load)}),
         **({"synthesis_latency_s": spec.synthesis_latency_s} if spec.synthesis_latency_s else {}),
         **({"select": spec.select} if spec.select != "J" else {}),
+        **({"pose_noise_scale": spec.pose_noise_scale} if spec.pose_noise_scale != 1.0 else {}),
     }
 
 
@@ -425,6 +448,7 @@ def spec_from_json(data: dict[str, Any]) -> SimRunSpec:
             else from_jsonable(EnvironmentalLoad, data["load"]),
             synthesis_latency_s=float(data.get("synthesis_latency_s", 0.0)),
             select=str(data.get("select", "J")),
+            pose_noise_scale=float(data.get("pose_noise_scale", 1.0)),
         )
     except (KeyError, TypeError, IndexError) as err:
         raise ValueError(f"malformed run specification {data!r}: {err!r}") from err

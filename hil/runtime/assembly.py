@@ -13,6 +13,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
+from hil.controllers.consistency import ConsistencyBreach, ConsistencyLimits, ConsistencyWatch
 from hil.controllers.low_level import LowLevelController, LowLevelParams
 from hil.controllers.observer import Ekf, ObserverStatus
 from hil.controllers.pid import PidGains
@@ -48,14 +49,25 @@ class EkfObserver:
         start_nu: Body velocity (u, v, r), shape (3,), the filter starts with at its
             first pose (a vessel known to be moving already); None starts at rest, as
             the filter does by itself.
+        estimation_bound_m: The estimation bound the guarantee assumes (m): each
+            pose's innovation is judged against it and the filter's pose noise
+            (:mod:`hil.controllers.consistency`); None: not watched.
     """
 
-    def __init__(self, ekf: Ekf | None = None, start_nu: FloatArray | None = None) -> None:
+    def __init__(
+        self,
+        ekf: Ekf | None = None,
+        start_nu: FloatArray | None = None,
+        estimation_bound_m: float | None = None,
+    ) -> None:
         self.ekf = ekf or Ekf()
         self._start_nu = None if start_nu is None else np.asarray(start_nu, dtype=np.float64)
+        self.watch = None if estimation_bound_m is None else ConsistencyWatch(
+            ConsistencyLimits(estimation_bound_m, self.ekf.config.pose_std_m))
+        """The consistency watch (None: not watched)."""
 
     def update_pose(self, sample: PoseSample) -> bool:
-        """Fuse a pose; False when the filter refused it."""
+        """Fuse a pose; False when the filter refused it. The watch judges its innovation."""
         starting = not self.ekf.initialized
         status = self.ekf.process_pose(sample)
         if starting and self.ekf.initialized and self._start_nu is not None:
@@ -63,7 +75,17 @@ class EkfObserver:
             first = self.ekf.estimate()
             self.ekf.initialize(first.t_ns, first.eta, self._start_nu)
             self._start_nu = None
+        if self.watch is not None:
+            innovation = self.ekf.last_innovation()
+            self.watch.pose(
+                sample.t_ns, innovation.nis, innovation.position_m,
+                gated=status in (ObserverStatus.GATED, ObserverStatus.RESET),
+            )  # fmt: skip
         return status in _POSE_ACCEPTED
+
+    def breach(self) -> ConsistencyBreach | None:
+        """Return the watch's first breach of the estimation premise, if any."""
+        return None if self.watch is None else self.watch.breach
 
     def update_imu(self, sample: ImuSample) -> bool:
         """Take an IMU sample; False when the filter refused it."""

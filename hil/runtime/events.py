@@ -69,6 +69,12 @@ class EventCode(enum.Enum):
     with how long the input was held and by how much too long): the loop stalled, and the
     one-step budget, bounded over periods up to tau + late, does not cover that interval.
     The decision is taken at once, as a first decision (from the estimated velocity)."""
+    ESTIMATE_INCONSISTENT = "estimate_inconsistent"
+    """The EKF's innovations broke its noise model over a window of poses (ERROR, with
+    the mean NIS, the share of gated poses and the RMS position innovation against
+    their limits, :mod:`hil.controllers.consistency`): the estimation bound the
+    guarantee assumes is no longer credible, so the run is aborted with a safe stop
+    (braking to rest on the estimate, the best the loop has)."""
     ABORTED = "aborted"
     """The run cannot go on (no controller for the layout, a state no safe input leaves
     from): thrusters to zero and the run ends at once, the text saying why."""

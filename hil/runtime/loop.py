@@ -189,6 +189,7 @@ class Runtime:
         self._brake_since_ns = 0
         self._rest_since_ns: int | None = None
         self._abort: str | None = None
+        self._estimate_breach = False
         self._not_winning_before = False
 
     # -- public -----------------------------------------------------------------------
@@ -228,6 +229,7 @@ class Runtime:
     def tick(self, t_ns: int) -> None:
         """Run one loop iteration at time `t_ns`."""
         self._ingest(t_ns)
+        self._check_estimate(t_ns)
         self._watch_obstacles(t_ns)
         self._swap_controller(t_ns)
         if self.mode is not Mode.BRAKING and self._check_stop(t_ns) and self.mode is Mode.STOPPED:
@@ -313,6 +315,19 @@ class Runtime:
                 self.log.imu(sample)
                 if not self.observer.update_imu(sample):
                     self._reject(t_ns, f"imu at t={sample.t_ns} ns")
+
+    def _check_estimate(self, t_ns: int) -> None:
+        """Abort (a safe stop) once the observer's estimate broke its noise model."""
+        if self._estimate_breach or self.mode in (Mode.STOPPED, Mode.DOCKED):
+            return
+        breach = self.observer.breach()
+        if breach is None:
+            return
+        self._estimate_breach = True
+        self.stats.estimate_inconsistent_ns = breach.t_ns
+        self._event(t_ns, EventLevel.ERROR, EventCode.ESTIMATE_INCONSISTENT, breach.text())
+        if self.mode is not Mode.BRAKING and self._abort is None:
+            self._abort = "the estimate broke its noise model: the estimation bound no longer holds"
 
     def _reject(self, t_ns: int, what: str) -> None:
         self.stats.rejected_samples += 1

@@ -14,6 +14,7 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from hil.controllers.consistency import ConsistencyBreach
 from hil.controllers.symbolic import DecisionContract
 from hil.core.records import Decision, EventLevel
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
@@ -33,6 +34,12 @@ class Observer(Protocol):
 
     def estimate(self) -> tuple[FloatArray, FloatArray] | None:
         """Return the newest (eta (3,), nu (3,)), or None before the filter has started."""
+
+    def breach(self) -> ConsistencyBreach | None:
+        """Return the first breach of the estimation premise so far; None: none, or not watched.
+
+        See :mod:`hil.controllers.consistency`.
+        """
 
 
 class SymbolicController(Protocol):

@@ -27,7 +27,9 @@ class RunStats:
     worst by how much (s);
     with obstacles that move, `report_age_relied_s` the oldest a relied-on report was
     when a fresher one took over and `report_age_solved_s` the largest report age a
-    controller in force was solved for (s; 0: none).
+    controller in force was solved for (s; 0: none);
+    `estimate_inconsistent_ns` the stamp of the pose at which the EKF's innovations
+    broke its noise model (None: consistent; :mod:`hil.controllers.consistency`).
     """
 
     start_ns: int = 0
@@ -47,6 +49,7 @@ class RunStats:
     worst_late_s: float = 0.0
     report_age_relied_s: float = 0.0
     report_age_solved_s: float = 0.0
+    estimate_inconsistent_ns: int | None = None
     thruster_failures: int = 0
     not_winning_decisions: int = 0
     tube_exits: int = 0

@@ -52,6 +52,7 @@ from hil.controllers.observer_math import (
     ekf_predict,
     ekf_update_pose,
     ekf_update_yaw_rate,
+    pose_innovation,
 )
 from hil.controllers.observer_ring import M_GATED_RUN
 from hil.core.samples import Frame, ImuSample, PoseSample
@@ -132,6 +133,8 @@ def assert_untouched(a: EkfArrays, before: list[FloatArray], counter: int) -> No
             np.testing.assert_array_equal(new, expected)
         elif name == "meta":  # the ring itself; the gated-in-a-row count may move
             np.testing.assert_array_equal(new[: M_GATED_RUN], old[: M_GATED_RUN])
+        elif name == "innovation":  # a report on the sample itself, not filter state
+            continue
         else:
             np.testing.assert_array_equal(new, old, err_msg=name)
 
@@ -203,6 +206,31 @@ def test_gate_uses_the_mahalanobis_distance_and_refuses_in_place() -> None:
     x1, P1 = x0.copy(), P0.copy()
     assert not ekf_update_yaw_rate(x1, P1, math.nan, 1e-4, math.inf)
     np.testing.assert_array_equal(x1, x0)
+    # The innovation the consistency watch judges is the gate's d^2, from the prior.
+    out = np.empty(3)
+    pose_innovation(x0, P0, z[0], z[1], z[2], r_diag[0], r_diag[1], r_diag[2], out)
+    assert out[0] == pytest.approx(d2, rel=1e-12)
+    assert out[1] == pytest.approx(math.hypot(0.3, 0.2), rel=1e-12)
+    assert out[2] == pytest.approx(0.1, rel=1e-12)
+    pose_innovation(x0, P0, math.nan, z[1], z[2], r_diag[0], r_diag[1], r_diag[2], out)
+    assert np.isnan(out).all()
+
+
+def test_the_ekf_reports_each_pose_s_innovation_fused_or_gated() -> None:
+    ekf = Ekf()
+    ekf.process_pose(PoseSample(0, 1.0, 2.0, 0.5))
+    assert math.isnan(ekf.last_innovation().nis)  # the first pose has no prior
+    for i in range(1, 30):
+        ekf.process_imu(ImuSample(i * DT_NS, 0.0, 0.0, 0.0))
+        ekf.process_pose(PoseSample(i * DT_NS, 1.0, 2.0, 0.5))
+        fused = ekf.last_innovation()
+        assert 0.0 <= fused.nis <= ekf.config.gate_pose_chi2
+    assert ekf.process_pose(PoseSample(30 * DT_NS, 1.05, 2.0, 0.5)) is ObserverStatus.GATED
+    gated = ekf.last_innovation()
+    assert gated.nis > ekf.config.gate_pose_chi2
+    assert gated.position_m == pytest.approx(0.05, rel=1e-6)
+    assert ekf.fuse_pose(31 * DT_NS, math.nan, 2.0, 0.5) is ObserverStatus.NONFINITE
+    assert math.isnan(ekf.last_innovation().nis)  # refused before its gate
 
 
 # ---------------------------------------------------------------------------

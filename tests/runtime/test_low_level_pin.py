@@ -86,6 +86,9 @@ class TrueVelocity:
         """Accept every IMU sample."""
         return True
 
+    def breach(self) -> None:
+        """Never: the truth is consistent."""
+
     def estimate(self) -> tuple[F, F]:
         """Return the true (eta, nu) at the clock's time."""
         return self.world.eta, self.world.state[P_NU : P_NU + 3].copy()

@@ -20,6 +20,7 @@ import pytest
 from numpy.typing import NDArray
 
 from hil.adapters.sim import SimConfig, SimWorld
+from hil.controllers.consistency import ConsistencyBreach
 from hil.controllers.symbolic import DecisionContract
 from hil.core.records import EventLevel
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample
@@ -54,6 +55,9 @@ class _ShiftedObserver:
 
     def update_imu(self, sample: ImuSample) -> bool:
         return self.ekf.update_imu(sample)
+
+    def breach(self) -> ConsistencyBreach | None:
+        return self.ekf.breach()
 
     def estimate(self) -> tuple[FloatArray, FloatArray] | None:
         got = self.ekf.estimate()
