@@ -65,6 +65,7 @@ def run(args: argparse.Namespace) -> int:
         campaign_specs,
         draw_starts,
         draw_velocities,
+        first_decision_s,
         sim_job,
     )
     from hil.runs.errors import ExecutorError
@@ -90,7 +91,8 @@ def run(args: argparse.Namespace) -> int:
         controller = solver(layout_from_scenario(scenario)).controller
         velocities = draw_velocities(scenario, args.n, args.moving, args.seed)
         starts, discarded = draw_starts(
-            controller, args.n, args.seed, StartRegion.of(scenario), velocities
+            controller, args.n, args.seed, StartRegion.of(scenario), velocities,
+            settle_s=first_decision_s(LoopConfig()),
         )
     except (ScenarioError, SymbolicError, ValueError) as err:
         print(f"hil campaign: {err}", file=sys.stderr)

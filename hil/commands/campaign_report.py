@@ -118,7 +118,7 @@ def report(outcome: CampaignResult, *, command: str, title: str, console: Consol
     table.add_column("paper", justify="right")
     table.add_row("docked, of the runs winning at their first decision",
                   *(f"{s.docked}/{s.winning_starts}" for s in all_stats), "5/5 sim, 10/10 tank")
-    table.add_row("first decision not winning (drifted while the observer settled)",
+    table.add_row("first decision not winning (though drawn winning where it is by then)",
                   *(str(s.lost_at_start) for s in all_stats), "-")
     table.add_row("runs with hull contact", *(str(s.contacts) for s in all_stats), "-")
     table.add_row("docking time mean (min..max)",

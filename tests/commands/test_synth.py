@@ -46,6 +46,10 @@ def test_synth_prints_a_report_and_json(tmp_path: Path, capsys: pytest.CaptureFi
     # From rest, of the cells the hull fits in: the corridor right of O2 is too narrow to
     # turn in, and the deviation budget costs a band along walls and the obstacle.
     assert 0.5 < summary["winning_fraction"] < 0.9
+    # A first decision at rest (a campaign's start) may take any input into the winning
+    # set, but budgeted for an unknown transient: a set of its own, reported beside.
+    assert 0.3 < summary["first_decision_fraction"] < 0.9
+    assert summary["first_decision_cells"] <= summary["free_cells"]
     assert summary["iterations"] > 10
     # 175 layers of winning bits, values and tubes on 540 000 cells.
     assert 0.0 < summary["peak_memory_mb"] < 600.0

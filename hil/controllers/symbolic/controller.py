@@ -21,6 +21,7 @@ from hil.controllers.symbolic.abstraction import N_CLASSES, Tables
 from hil.controllers.symbolic.errors import ControllerFileError, SymbolicError
 from hil.controllers.symbolic.grid import Grid
 from hil.controllers.symbolic.kernels import (
+    first_decision_cells,
     layer_values,
     safe_input_indices,
     state_value,
@@ -270,6 +271,22 @@ class Controller:
             return self.cell_value(cell, previous)
         self.safe_input_indices_at(cell, previous, first=True)
         return int(self._best[0])
+
+    def first_decision_winning(self, previous: int | None = None) -> BoolArray:
+        """Return where a first decision finds a safe input, shape (nx, ny, npsi).
+
+        `previous` is the reference in force (None: at rest); the target counts (a
+        first decision there holds). What the runtime's first decision (start, after a
+        stop) and a campaign's start draw call winning; :attr:`values` is the winning set
+        with the reference held.
+        """
+        t = self._tables
+        out: BoolArray = first_decision_cells(
+            self._W, self._planes, self._viable, self._pads, t.succ, t.heading,
+            self._lattice.neighbours, self._lattice.n_neighbours, self.grid.ny,
+            self.reference_index(previous),
+        )  # fmt: skip
+        return out
 
     def values_at(
         self, layer: int, i: NDArray[np.int64], j: NDArray[np.int64], k: NDArray[np.int64]

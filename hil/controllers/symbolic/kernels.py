@@ -17,7 +17,14 @@ U64Array = NDArray[np.uint64]
 I32Array = NDArray[np.int32]
 BoolArray = NDArray[np.bool_]
 
-__all__ = ["layer_values", "pack_rows", "safe_input_indices", "state_value", "state_values"]
+__all__ = [
+    "first_decision_cells",
+    "layer_values",
+    "pack_rows",
+    "safe_input_indices",
+    "state_value",
+    "state_values",
+]
 
 _ZERO = np.uint64(0)
 _ONE = np.uint64(1)
@@ -107,6 +114,7 @@ def safe_input_indices(
     first: bool,
     out: I32Array,
     best: I32Array,
+    any_only: bool = False,
 ) -> int:
     """Write the safe inputs at cell (i, j, k) with reference p in force to `out`; return n.
 
@@ -158,4 +166,40 @@ def safe_input_indices(
             n += 1
             if best[0] < 0 or worst + 1 < best[0]:
                 best[0] = worst + 1
+            if any_only:
+                break
     return n
+
+
+@njit
+def first_decision_cells(
+    W: U64Array,
+    planes: U64Array,
+    viable: U64Array,
+    pads: I32Array,
+    succ: I32Array,
+    heading: I32Array,
+    neighbours: I32Array,
+    n_neighbours: I32Array,
+    ny: int,
+    p: int,
+) -> NDArray[np.bool_]:
+    """Return where a first decision with reference p in force finds a safe input.
+
+    Shape (nx, ny, npsi): :func:`safe_input_indices` with `first` (every candidate
+    budgeted as a first command, into the winning set at any value) has an input, or
+    the cell is in the target (value 0: hold).
+    """
+    npsi, nx = planes.shape[1], planes.shape[4]
+    out = np.zeros((nx, ny, npsi), dtype=np.bool_)
+    found = np.empty(neighbours.shape[1] + 1, dtype=np.int32)
+    best = np.empty(1, dtype=np.int32)
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(npsi):
+                safe_input_indices(
+                    W, planes, viable, pads, succ, heading, neighbours, n_neighbours, ny,
+                    p, i, j, k, True, found, best, True,
+                )  # fmt: skip
+                out[i, j, k] = best[0] >= 0
+    return out
