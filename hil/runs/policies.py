@@ -12,6 +12,9 @@ flying another (:data:`POLICIES`):
   turns, a weave);
 - ``fastest``: the one of greatest speed |u| + |v| (the most momentum to brake, the
   largest transients; the paper's J penalizes speed, so it flies the slow end instead);
+- ``closest``: the one whose exact arc over tau (the input held from the estimated
+  state) brings the hull closest to an obstacle (where the scenario places it) or a
+  wall: the guarantee's margins, tested where they are thinnest;
 - ``mixed``: each decision one of the others, drawn at random (seeded).
 
 Ties go to the lowest row, so a run is reproducible from its seed on every machine.
@@ -24,25 +27,33 @@ from collections.abc import Callable
 import numpy as np
 from numpy.typing import NDArray
 
+from hil.controllers.symbolic.abstraction import arc_poses
+from hil.runs.clearance import hull_clearance_series, hull_corners
 from hil.runtime.assembly import select_index
+from hil.scenarios import Scenario
 
 FloatArray = NDArray[np.float64]
-Select = Callable[[FloatArray, FloatArray], int]
-"""Picks a row of the safe inputs (k, 3) given the previous input (3,)."""
+Select = Callable[[FloatArray, FloatArray, FloatArray], int]
+"""Picks a row of the safe inputs (k, 3) given the previous input (3,) and the estimated
+state (3,): x m, y m, psi rad."""
 
-POLICIES = ("J", "random", "largest-change", "zigzag", "fastest", "mixed")
+POLICIES = ("J", "random", "largest-change", "zigzag", "fastest", "closest", "mixed")
+
+ARC_POINTS = 21
+"""Poses per arc the ``closest`` policy judges (every tau / 20: 0.1 s at tau = 2 s, 1 cm
+at the fastest surge)."""
 """Names ``--select`` takes."""
 
 
 def _largest_change(steps: FloatArray) -> Select:
-    def select(safe: FloatArray, previous: FloatArray) -> int:
+    def select(safe: FloatArray, previous: FloatArray, _state: FloatArray) -> int:
         return int(np.argmax(np.abs((safe - previous) / steps).sum(axis=1)))
 
     return select
 
 
 def _zigzag(steps: FloatArray) -> Select:
-    def select(safe: FloatArray, previous: FloatArray) -> int:
+    def select(safe: FloatArray, previous: FloatArray, _state: FloatArray) -> int:
         # Against the previous sway and yaw rate's signs (a still axis: toward +).
         sign = np.where(previous[1:] > 0.0, -1.0, 1.0)
         return int(np.argmax((safe[:, 1:] * sign / steps[1:]).sum(axis=1)))
@@ -50,11 +61,37 @@ def _zigzag(steps: FloatArray) -> Select:
     return select
 
 
-def _fastest(safe: FloatArray, _previous: FloatArray) -> int:
+def _fastest(safe: FloatArray, _previous: FloatArray, _state: FloatArray) -> int:
     return int(np.argmax(np.abs(safe[:, 0]) + np.abs(safe[:, 1])))
 
 
-def policy(name: str, seed: int, steps: FloatArray) -> Select:
+def arc_clearance(scenario: Scenario, state: FloatArray, inputs: FloatArray) -> FloatArray:
+    """Return the least hull clearance along each input's exact arc over tau (m), shape (k,).
+
+    To the real obstacles where the scenario places them and to the arena's walls
+    (negative: a hull corner past a wall); the inputs (k, 3) held from `state` (3,).
+    """
+    t_s = np.linspace(0.0, scenario.tau_s, ARC_POINTS)
+    poses = arc_poses(state, inputs, t_s).reshape(-1, 3)
+    obstacles = hull_clearance_series(scenario, poses)
+    hulls = hull_corners(scenario.hull.length_m, scenario.hull.beam_m, poses)
+    (x0, x1), (y0, y1) = scenario.x_range_m, scenario.y_range_m
+    walls = np.minimum.reduce([
+        hulls[..., 0].min(axis=1) - x0, x1 - hulls[..., 0].max(axis=1),
+        hulls[..., 1].min(axis=1) - y0, y1 - hulls[..., 1].max(axis=1),
+    ])  # fmt: skip
+    out: FloatArray = np.minimum(obstacles, walls).reshape(len(inputs), ARC_POINTS).min(axis=1)
+    return out
+
+
+def _closest(scenario: Scenario) -> Select:
+    def select(safe: FloatArray, _previous: FloatArray, state: FloatArray) -> int:
+        return int(np.argmin(arc_clearance(scenario, state, safe)))
+
+    return select
+
+
+def policy(name: str, seed: int, steps: FloatArray, scenario: Scenario | None = None) -> Select:
     """Return the selection of policy `name` for one run.
 
     Args:
@@ -62,6 +99,8 @@ def policy(name: str, seed: int, steps: FloatArray) -> Select:
         seed: The run's seed (``random`` and ``mixed`` draw from it).
         steps: The input lattice's step per axis (surge m/s, sway m/s, yaw rad/s), shape
             (3,): distances in lattice steps.
+        scenario: The run's obstacles, walls, hull and tau (``closest`` judges arcs
+            against them; without it ``closest`` is refused and ``mixed`` leaves it out).
 
     Raises:
         ValueError: An unknown name.
@@ -74,10 +113,14 @@ def policy(name: str, seed: int, steps: FloatArray) -> Select:
         "zigzag": _zigzag(steps),
         "fastest": _fastest,
     }
+    if scenario is not None:
+        fixed["closest"] = _closest(scenario)
+    elif name == "closest":
+        raise ValueError("the closest policy needs the run's scenario (obstacles and walls)")
     if name in fixed:
         return fixed[name]
 
-    def uniform(safe: FloatArray, _previous: FloatArray) -> int:
+    def uniform(safe: FloatArray, _previous: FloatArray, _state: FloatArray) -> int:
         return int(rng.integers(len(safe)))
 
     if name == "random":
@@ -85,8 +128,8 @@ def policy(name: str, seed: int, steps: FloatArray) -> Select:
     if name == "mixed":
         options = [*fixed.values(), uniform]
 
-        def mixed(safe: FloatArray, previous: FloatArray) -> int:
-            return options[int(rng.integers(len(options)))](safe, previous)
+        def mixed(safe: FloatArray, previous: FloatArray, state: FloatArray) -> int:
+            return options[int(rng.integers(len(options)))](safe, previous, state)
 
         return mixed
     raise ValueError(f"selection policy must be one of {', '.join(POLICIES)}, got {name!r}")

@@ -329,7 +329,7 @@ def simulate(
     scenario = load_scenario(spec.scenario)
     if select is None:
         steps = np.array([scenario.surge.step, scenario.sway.step, scenario.yaw_rate.step])
-        select = policy(spec.select, spec.seed, steps)
+        select = policy(spec.select, spec.seed, steps, scenario)
     config = sim_config(spec, scenario)
     start = config.start
     sim = SimWorld(config, max_duration_s=spec.loop.max_duration_s + 10.0)

@@ -184,8 +184,14 @@ class SymbolicAdapter:
         return DecisionContract.of(self.controller, cell, chosen, reference, first)
 
 
-def select_index(safe_inputs: FloatArray, previous: FloatArray) -> int:
-    """Return the row of `safe_inputs` (k, 3) that minimizes the paper's cost J."""
+def select_index(
+    safe_inputs: FloatArray, previous: FloatArray, _state: FloatArray | None = None
+) -> int:
+    """Return the row of `safe_inputs` (k, 3) that minimizes the paper's cost J.
+
+    The cost needs only the previous input (3,); the estimated state (3,) other
+    selections take (:mod:`hil.runs.policies`) is not used.
+    """
     return int(np.argmin(cost(safe_inputs, previous)))
 
 

@@ -135,7 +135,7 @@ class Runtime:
         observer: Observer,
         low_level: LowLevel,
         resynthesizer: Resynthesizer[SymbolicController],
-        select: Callable[[FloatArray, FloatArray], int],
+        select: Callable[[FloatArray, FloatArray, FloatArray], int],
         log: RunLog,
         config: LoopConfig | None = None,
         scenario_hash: str = "",
@@ -840,7 +840,7 @@ class Runtime:
             indices = controller.safe_input_indices(eta_hat, reference, first)
             if indices.size:
                 safe = controller.inputs[indices]
-                chosen_index = int(indices[self.select(safe, self._previous_input)])
+                chosen_index = int(indices[self.select(safe, self._previous_input, eta_hat)])
         chosen = controller.inputs[chosen_index].copy() if chosen_index >= 0 else np.zeros(3)
         self._not_winning_before = math.isinf(value)
         if value != 0.0 and self.mode is Mode.AT_TARGET:

@@ -20,7 +20,6 @@ Re-synthesis runs once per distinct layout, not per decision.
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -30,7 +29,7 @@ from numpy.typing import NDArray
 
 from hil.bag.run_data import Layout, RunData
 from hil.controllers.symbolic import Controller, Grid, SymbolicError
-from hil.controllers.symbolic.abstraction import displacement
+from hil.controllers.symbolic.abstraction import arc_poses
 from hil.core.records import Decision
 from hil.runs.sim_run import scenario_hash, synthesizer_for
 from hil.runtime.assembly import LayoutSolver, obstacles_from_layout
@@ -75,14 +74,8 @@ def predicted_arcs(
     Returns:
         Arena positions, shape (m, n_points, 2), indexed [input, time, (x, y)] in m.
     """
-    x0, y0, psi0 = (float(v) for v in state)
-    inputs = np.asarray(inputs, dtype=np.float64).reshape(-1, 3)
     t_s = np.linspace(0.0, tau_s, max(n_points, 2))
-    d = displacement(inputs, t_s)  # (m, T, 2) in the start body frame
-    c, s = math.cos(psi0), math.sin(psi0)
-    x = x0 + c * d[..., 0] - s * d[..., 1]
-    y = y0 + s * d[..., 0] + c * d[..., 1]
-    out: FloatArray = np.stack([x, y], axis=-1)
+    out: FloatArray = arc_poses(np.asarray(state, dtype=np.float64), inputs, t_s)[..., :2]
     return out
 
 

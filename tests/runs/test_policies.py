@@ -15,10 +15,11 @@ import pytest
 
 from hil.cli import main
 from hil.runs.guarantee import judged_run
-from hil.runs.policies import POLICIES, policies_of, policy
+from hil.runs.policies import POLICIES, arc_clearance, policies_of, policy
 from hil.runs.sim_run import SimRunSpec, simulate, spec_from_json, spec_to_json
 from hil.runtime.settings import LoopConfig
 from hil.runtime.trace import MemoryLog
+from hil.scenarios import load_scenario
 
 STEPS = np.array([0.05, 0.05, 0.1])
 SAFE = np.array([
@@ -27,19 +28,36 @@ SAFE = np.array([
     [0.05, -0.05, -0.1],
     [0.00, 0.00, 0.0],
 ])
+STATE = np.zeros(3)
 
 
 def test_each_policy_picks_what_its_name_says() -> None:
     previous = np.array([0.10, 0.05, 0.1])
-    assert policy("largest-change", 0, STEPS)(SAFE, previous) == 2  # 1 + 2 + 2 steps
-    assert policy("largest-change", 0, STEPS)(SAFE, np.zeros(3)) == 1  # 4 + 1 + 1 steps
-    assert policy("zigzag", 0, STEPS)(SAFE, previous) == 2  # sway and yaw reversed
-    assert policy("fastest", 0, STEPS)(SAFE, previous) == 1
-    draws = [policy("random", 7, STEPS)(SAFE, previous) for _ in range(3)]
-    again = [policy("random", 7, STEPS)(SAFE, previous) for _ in range(3)]
+    assert policy("largest-change", 0, STEPS)(SAFE, previous, STATE) == 2  # 1 + 2 + 2 steps
+    assert policy("largest-change", 0, STEPS)(SAFE, np.zeros(3), STATE) == 1  # 4 + 1 + 1 steps
+    assert policy("zigzag", 0, STEPS)(SAFE, previous, STATE) == 2  # sway and yaw reversed
+    assert policy("fastest", 0, STEPS)(SAFE, previous, STATE) == 1
+    draws = [policy("random", 7, STEPS)(SAFE, previous, STATE) for _ in range(3)]
+    again = [policy("random", 7, STEPS)(SAFE, previous, STATE) for _ in range(3)]
     assert draws == again  # seeded: the same run is the same on every machine
-    mixed = policy("mixed", 3, STEPS)
-    assert all(0 <= mixed(SAFE, previous) < len(SAFE) for _ in range(20))
+    mixed = policy("mixed", 3, STEPS, load_scenario("coarse"))
+    assert all(0 <= mixed(SAFE, previous, STATE) < len(SAFE) for _ in range(20))
+
+
+def test_closest_flies_the_arc_nearest_an_obstacle_or_a_wall() -> None:
+    # On coarse, heading +x (psi 0) with the bow 0.205 m from the wall at x = 1.0 (O2
+    # far to the left, the other walls farther): surging ahead brings the hull closest
+    # to the wall; holding still or backing away keeps the start's clearance.
+    scenario = load_scenario("coarse")
+    state = np.array([0.3, -1.5, 0.0])
+    safe = np.array([[0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [-0.05, 0.0, 0.0]])
+    clearance = arc_clearance(scenario, state, safe)
+    _, x1 = scenario.x_range_m
+    bow = 0.3 + scenario.hull.length_m / 2
+    assert clearance[0] == pytest.approx(x1 - bow, abs=1e-9)
+    assert clearance[2] == pytest.approx(x1 - bow, abs=1e-9)
+    assert clearance[1] == pytest.approx(x1 - bow - 0.1 * scenario.tau_s, abs=1e-9)
+    assert policy("closest", 0, STEPS, scenario)(safe, np.zeros(3), state) == 1
 
 
 def test_policy_names_are_checked() -> None:
@@ -48,6 +66,8 @@ def test_policy_names_are_checked() -> None:
         policies_of("J,closest-ish")
     with pytest.raises(ValueError, match="one of"):
         policy("nope", 0, STEPS)
+    with pytest.raises(ValueError, match="needs the run's scenario"):
+        policy("closest", 0, STEPS)
     spec = SimRunSpec("coarse", 1, select="zigzag")
     assert spec_from_json(spec_to_json(spec)).select == "zigzag"
     assert "select" not in spec_to_json(SimRunSpec("coarse", 1))  # older specs unchanged

@@ -112,7 +112,7 @@ def run_runtime(refs: F) -> tuple[MemoryLog, SimWorld, ScriptedController]:
     runtime = Runtime(
         World(world.clock, world.pose, world.imu, world.obstacles, world.thrusters),
         TrueVelocity(world), low_level_for(loop.loop_hz),
-        Resynthesizer(solve, ResynthesisMode.INLINE), lambda safe, previous: 0, log, loop,
+        Resynthesizer(solve, ResynthesisMode.INLINE), lambda safe, previous, state: 0, log, loop,
     )
     runtime.run()
     return log, world, controller

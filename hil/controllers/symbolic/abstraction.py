@@ -61,6 +61,7 @@ IntArray = NDArray[np.int32]
 
 __all__ = [
     "Tables",
+    "arc_poses",
     "build_tables",
     "default_cache_dir",
     "displacement",
@@ -199,6 +200,24 @@ def displacement(inputs: FloatArray, t_s: FloatArray) -> FloatArray:
     dx = np.where(straight, u * t, (u * np.sin(rt) + v * (np.cos(rt) - 1.0)) / r_safe)
     dy = np.where(straight, v * t, (u * (1.0 - np.cos(rt)) + v * np.sin(rt)) / r_safe)
     return np.stack([dx, dy], axis=-1)
+
+
+def arc_poses(state: FloatArray, inputs: FloatArray, t_s: FloatArray) -> FloatArray:
+    """Return the exact arcs' poses from `state` under each input held, shape (m, T, 3).
+
+    state: pose (x m, y m, psi rad); inputs (m, 3): body velocities (u m/s, v m/s, r rad/s)
+    held from t = 0; t_s (T,): times (s). Rows (x m, y m, psi rad) in the arena frame.
+    """
+    x0, y0, psi0 = (float(v) for v in np.asarray(state, dtype=np.float64).reshape(3))
+    inputs = np.asarray(inputs, dtype=np.float64).reshape(-1, 3)
+    t = np.asarray(t_s, dtype=np.float64)
+    d = displacement(inputs, t)  # (m, T, 2) in the start body frame
+    c, s = math.cos(psi0), math.sin(psi0)
+    x = x0 + c * d[..., 0] - s * d[..., 1]
+    y = y0 + s * d[..., 0] + c * d[..., 1]
+    psi = psi0 + inputs[:, 2:3] * t[None, :]
+    out: FloatArray = np.stack([x, y, psi], axis=-1)
+    return out
 
 
 def _cos_range(a: FloatArray, b: FloatArray) -> tuple[FloatArray, FloatArray]:
