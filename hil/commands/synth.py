@@ -107,6 +107,7 @@ def run(args: argparse.Namespace) -> int:
     peak_mb = max(c.stats.peak_bytes for c in runs[1:] or runs) / 2**20
     grid = problem.grid
     first_cells = int(np.count_nonzero(controller.first_decision_winning()))
+    safe_cells, waiting_cells = controller.safe_counts()
     summary: dict[str, Any] = {
         "scenario": scenario.name,
         "grid": list(grid.shape),
@@ -128,6 +129,8 @@ def run(args: argparse.Namespace) -> int:
         "winning_fraction": stats.winning_fraction,
         "first_decision_cells": first_cells,
         "first_decision_fraction": first_cells / stats.free_cells if stats.free_cells else 0.0,
+        "safe_cells": safe_cells,
+        "safe_not_winning_cells": waiting_cells,
         "peak_memory_mb": peak_mb,
         "tables_mb": tables.nbytes() / 2**20,
     }
@@ -159,6 +162,11 @@ def run(args: argparse.Namespace) -> int:
         f"({100 * stats.winning_fraction:.2f} %) with the rest reference held; a first "
         f"decision at rest (a start: what `hil campaign` draws) finds a safe input in "
         f"{first_cells} ({100 * summary['first_decision_fraction']:.2f} %)"
+    )
+    print(
+        f"safety       {safe_cells} cells where the vessel can stay safe from rest for ever "
+        f"(the safety controller's set); {waiting_cells} of them do not win for docking: "
+        "there it waits until docking wins"
     )
     solved_here = "" if not first.stats.loaded else " (not solved here)"
     print(

@@ -118,7 +118,9 @@ class Decision:
         cell: Flat grid cell index of `state`; -1 outside the grid.
         value: Value function at the cell (steps to target); +inf outside the winning set.
         winning: Whether the cell is in the winning set.
-        safe_inputs: The safe inputs (u m/s, v m/s, r rad/s), one triple per input.
+        safe_inputs: The safe inputs (u m/s, v m/s, r rad/s), one triple per input;
+            where docking is not winning, those that keep the vessel in the safety set
+            (:attr:`staying`).
         safe_input_indices: Index of each safe input in the controller's input grid.
         chosen_index: Input-grid index of the chosen input; -1 when none was chosen.
         chosen_input: The chosen (u, v, r); zeros when `chosen_index` is -1.
@@ -153,6 +155,15 @@ class Decision:
     first: bool = False
     report_age_s: float | None = None
     report_t_ns: int = -1
+
+    @property
+    def staying(self) -> bool:
+        """Whether the decision was the safety controller's.
+
+        Docking was not winning, yet an input was chosen among those that keep the
+        vessel in the safety set.
+        """
+        return not self.winning and self.chosen_index >= 0
 
     def __post_init__(self) -> None:
         _check_time("decision", self.t_ns)

@@ -42,7 +42,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hil.bag.run_data import RunData
-from hil.controllers.symbolic import ControllerSources, NoWinningSetError, cost
+from hil.controllers.symbolic import ControllerSources, NoWinningSetError, cost, wait_index
 from hil.core.geometry import wrap_angles
 from hil.core.records import Decision
 from hil.core.samples import ObstacleLayout
@@ -78,14 +78,17 @@ class Recomputed:
     Attributes:
         cell: Flat cell index (-1 outside the grid).
         value: Value at the state (+inf outside the winning set).
-        safe: Input-grid indices of the safe inputs, sorted.
+        safe: Input-grid indices of the safe inputs, sorted (the staying ones where
+            docking is not winning and the vessel can stay safe).
         chosen: Input-grid index of the chosen input, -1 for none.
+        staying: The decision is the safety controller's (docking not winning).
     """
 
     cell: int
     value: float
     safe: tuple[int, ...]
     chosen: int
+    staying: bool = False
 
     @property
     def winning(self) -> bool:
@@ -105,18 +108,17 @@ def recompute(
     Given the previous choice (3,) for the cost J, the reference in force (input-grid
     index) and whether it was a first decision.
 
-    Mirrors :meth:`hil.runtime.loop.Runtime._decide`: no input in the target
-    (value 0) or where nothing is safe (value inf).
+    Asks the controller the one query the runtime asks (:meth:`SymbolicController.query`)
+    and picks as the vessel does by default: J among the safe inputs, the slowest
+    (:func:`wait_index`) among the staying ones; none in the target (value 0) or where
+    nothing is safe.
     """
-    cell = controller.locate(state)
-    value = controller.value(state, reference, first)
-    if value == 0.0 or math.isinf(value):
-        return Recomputed(cell, value, (), -1)
-    indices = controller.safe_input_indices(state, reference, first)
+    q = controller.query(state, reference, first)
     chosen = -1
-    if indices.size:
-        chosen = int(indices[select_index(controller.inputs[indices], previous)])
-    return Recomputed(cell, value, tuple(sorted(int(i) for i in indices)), chosen)
+    if q.inputs.size:
+        pick = wait_index if q.staying else select_index
+        chosen = int(q.inputs[pick(controller.inputs[q.inputs], previous)])
+    return Recomputed(q.cell, q.value, tuple(sorted(int(i) for i in q.inputs)), chosen, q.staying)
 
 
 def _version_times(run: RunData) -> dict[int, int]:
@@ -174,7 +176,9 @@ def consistency(d: Decision, inputs: FloatArray | None) -> list[tuple[str, str]]
     if d.winning != math.isfinite(d.value):
         out.append(("winning", f"winning: recorded {d.winning} but value {d.value}"))
     indices = d.safe_input_indices
-    if (d.value == 0.0 or math.isinf(d.value)) and indices:
+    # Outside the winning set, a decision lists inputs only when it waits on the safety
+    # controller, and then it flies one of them.
+    if (d.value == 0.0 or (math.isinf(d.value) and d.chosen_index < 0)) and indices:
         out.append(
             (
                 "safe_input_indices",
@@ -286,7 +290,9 @@ def _mismatch(
         d.chosen_index != got.chosen
         and same_set
         and d.chosen_index in got.safe
-        and is_cost_tie(controller, d.chosen_index, got.chosen, previous)
+        and is_cost_tie(
+            controller, d.chosen_index, got.chosen, np.zeros(3) if got.staying else previous
+        )
     )
     fields = [
         name

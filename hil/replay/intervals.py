@@ -101,7 +101,9 @@ def contract_of(adapter: SymbolicAdapter, d: Decision) -> DecisionContract | Non
     n = adapter.controller.tables.n_inputs
     if not (0 <= d.chosen_index < n and 0 <= d.reference_index < n):
         return None
-    return adapter.contract(np.array(d.state), d.chosen_index, d.reference_index, d.first)
+    return adapter.contract(
+        np.array(d.state), d.chosen_index, d.reference_index, d.first, d.staying
+    )
 
 
 def budget_class(d: Decision) -> int | None:

@@ -261,7 +261,8 @@ def judge_run(
         if decision.chosen_index < 0:
             continue
         contract = DecisionContract.of(
-            controller, cell, decision.chosen_index, decision.reference_index, decision.first
+            controller, cell, decision.chosen_index, decision.reference_index, decision.first,
+            decision.staying,
         )
         out["intervals"] += 1
         r_next = rows[index + 1] if index + 1 < len(rows) else n - 1

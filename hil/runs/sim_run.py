@@ -25,7 +25,7 @@ from hil.adapters.sim import ObstacleMotion, SimConfig, SimWorld, ThrusterOutage
 from hil.bag.recorder import Recorder
 from hil.bag.run_info import RunInfo
 from hil.controllers.pid import PidGains
-from hil.controllers.symbolic import Controller, SymbolicProblem, Synthesizer
+from hil.controllers.symbolic import Controller, SymbolicProblem, Synthesizer, wait_index
 from hil.core.codec import from_jsonable, to_jsonable
 from hil.core.motion import displacements_m
 from hil.core.samples import ObstacleLayout
@@ -169,7 +169,8 @@ class RecordingSolver:
 def build_runtime(
     scenario: Scenario, world: World, log: RunLog, loop: LoopConfig,
     synthesizer: Synthesizer, mode: ResynthesisMode, *,
-    select: Select = select_index, start_nu: FloatArray | None = None,
+    select: Select = select_index, wait_select: Select = wait_index,
+    start_nu: FloatArray | None = None,
     solver: Solve[SymbolicController] | None = None,
     gains: PidGains | None = None,
     synthesis_latency_s: float = 0.0,
@@ -184,6 +185,8 @@ def build_runtime(
         synthesizer: Holds the grid's abstraction tables.
         mode: Where re-synthesis runs.
         select: Choice among the safe inputs; the paper's cost J by default.
+        wait_select: Choice among the safety controller's inputs while docking is not
+            winning; the slowest by J by default.
         start_nu: Body velocity (3,) the EKF starts from; None at rest.
         solver: (Layout, report age) -> controller; a :class:`LayoutSolver` if None.
         gains: Velocity-PID gains; None: the shipped ones.
@@ -212,7 +215,7 @@ def build_runtime(
     return Runtime(world, observer, low_level_for(loop.loop_hz, gains),
                    resynthesizer, select, log, loop, scenario_hash(scenario),
                    estimation_position_m=scenario.transient.estimation_position_m,
-                   report_ages=report_ages_of(scenario))
+                   report_ages=report_ages_of(scenario), wait_select=wait_select)
 
 
 def report_ages_of(scenario: Scenario) -> ReportAgeBudget:
@@ -327,9 +330,12 @@ def simulate(
     """
     wall_start = time.perf_counter()
     scenario = load_scenario(spec.scenario)
+    wait_select: Select = wait_index
     if select is None:
         steps = np.array([scenario.surge.step, scenario.sway.step, scenario.yaw_rate.step])
         select = policy(spec.select, spec.seed, steps, scenario)
+        if spec.select != "J":  # an adversary picks among the staying inputs too
+            wait_select = select
     config = sim_config(spec, scenario)
     start = config.start
     sim = SimWorld(config, max_duration_s=spec.loop.max_duration_s + 10.0)
@@ -352,7 +358,7 @@ def simulate(
     try:
         runtime = build_runtime(
             scenario, world, log, spec.loop, synthesizer, ResynthesisMode.INLINE,
-            select=select, solver=solver, gains=spec.gains,
+            select=select, wait_select=wait_select, solver=solver, gains=spec.gains,
             synthesis_latency_s=spec.synthesis_latency_s,
             start_nu=None if spec.start_velocity is None else np.array(spec.start_velocity))
         signals = stop_on_signals(runtime.request_stop) if handle_signals else nullcontext()

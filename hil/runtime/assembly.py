@@ -7,6 +7,7 @@ controller with its re-synthesis each get a thin adapter here, so the loop in
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
 
@@ -29,7 +30,7 @@ from hil.controllers.symbolic import (
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
 from hil.core.shapes import Rect
 from hil.runtime.resynthesis import VesselState
-from hil.runtime.stack import LowLevelOutput
+from hil.runtime.stack import DecisionQuery, LowLevelOutput
 from hil.scenarios import Obstacle, Scenario
 
 FloatArray = NDArray[np.float64]
@@ -174,14 +175,24 @@ class SymbolicAdapter:
             return np.zeros(0, dtype=np.int64)
         return self.controller.safe_input_indices_at(cell, reference, first).astype(np.int64)
 
+    def query(self, state: FloatArray, reference: int, first: bool) -> DecisionQuery:
+        """Return the decision's whole answer at `state` (the cell located once)."""
+        cell = self.controller.grid.cell_of(state)
+        if cell is None:
+            return DecisionQuery(-1, math.inf, np.zeros(0, dtype=np.int64))
+        answer = self.controller.decide_at(cell, reference, first)
+        flat = sum(c * s for c, s in zip(cell, self._strides, strict=True))
+        value = math.inf if answer.value < 0 else float(answer.value)
+        return DecisionQuery(flat, value, answer.inputs.astype(np.int64), answer.staying)
+
     def contract(
-        self, state: FloatArray, chosen: int, reference: int, first: bool
+        self, state: FloatArray, chosen: int, reference: int, first: bool, staying: bool = False
     ) -> DecisionContract | None:
         """Return the contract of choosing `chosen` at `state`; None outside the grid."""
         cell = self.controller.grid.cell_of(state)
         if cell is None:
             return None
-        return DecisionContract.of(self.controller, cell, chosen, reference, first)
+        return DecisionContract.of(self.controller, cell, chosen, reference, first, staying)
 
 
 def select_index(

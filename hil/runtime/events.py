@@ -18,9 +18,15 @@ class EventCode(enum.Enum):
     its report (the text gives both times): it is swapped in, and decisions wait for a
     fresher report of the same shapes to renew it (``obstacles_stale`` until then)."""
     NOT_WINNING = "not_winning"
-    """The estimate is outside the winning set: the vessel is stopped (nu_ref = 0); the
-    run is aborted at the run's first decision, or when the next decision is still not
-    winning."""
+    """The estimate is outside the winning set and the safety set: the vessel is stopped
+    (nu_ref = 0); the run is aborted at the run's first decision, or when the next
+    decision is still not winning."""
+    DOCKING_LOST = "docking_lost"
+    """Docking is not winning from the estimate (a moving obstacle closed the passage), but
+    the vessel can stay safe (WARN, once per episode): the safety controller's inputs
+    are flown, the slowest first, until docking wins again."""
+    DOCKING_BACK = "docking_back"
+    """Docking is winning again after a wait on the safety controller: docking resumes."""
     NO_CONTROLLER = "no_controller"
     """No valid controller: the vessel is stopped (nu_ref = 0)."""
     POSE_LOST = "pose_lost"

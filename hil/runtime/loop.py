@@ -29,6 +29,7 @@ from hil.adapters.interfaces import (
     ThrusterSink,
     ThrusterSinkError,
 )
+from hil.controllers.symbolic.selection import wait_index
 from hil.core.records import Decision, EventLevel
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
 from hil.core.transient import LATE_S, START_PERIODS
@@ -127,6 +128,9 @@ class Runtime:
             time the controller relies on (no synthesis), and an older one stops the
             vessel (``obstacles_stale``). None: obstacles are fixed between layouts, solved
             for a report age of 1 s (which grows nothing).
+        wait_select: The choice among the safety controller's inputs where docking is
+            not winning (a moving obstacle closed the passage): the vessel stays safe and
+            waits, and docks once the state wins again. The slowest by J by default.
     """
 
     def __init__(
@@ -141,12 +145,14 @@ class Runtime:
         scenario_hash: str = "",
         estimation_position_m: float = 0.0,
         report_ages: ReportAgeBudget | None = None,
+        wait_select: Callable[[FloatArray, FloatArray, FloatArray], int] = wait_index,
     ) -> None:
         self.world = world
         self.observer = observer
         self.low_level = low_level
         self.resynthesizer = resynthesizer
         self.select = select
+        self.wait_select = wait_select
         self.log = log
         self.config = config or LoopConfig()
         self.scenario_hash = scenario_hash
@@ -191,6 +197,7 @@ class Runtime:
         self._abort: str | None = None
         self._estimate_breach = False
         self._not_winning_before = False
+        self._staying = False  # the last decision was the safety controller's
 
     # -- public -----------------------------------------------------------------------
 
@@ -801,7 +808,6 @@ class Runtime:
                     "no valid controller; velocity reference zero",
                 )
             return
-        cell = controller.locate(eta_hat)
         if self._reference_index is None:
             self._first_left = START_PERIODS
         first = self._first_left > 0
@@ -810,11 +816,16 @@ class Runtime:
             if self._reference_index is None
             else self._reference_index
         )
-        value = controller.value(eta_hat, reference, first)
-        indices = np.zeros(0, dtype=np.int64)
+        query = controller.query(eta_hat, reference, first)
+        cell, value, indices = query.cell, query.value, query.inputs
         chosen_index = -1
+        self._note_staying(t_ns, query.staying, eta_hat)
         if value == 0.0:
             self._at_target(t_ns)
+        elif query.staying:
+            self.stats.staying_decisions += 1
+            safe = controller.inputs[indices]
+            chosen_index = int(indices[self.wait_select(safe, self._previous_input, eta_hat)])
         elif math.isinf(value):
             self.stats.not_winning_decisions += 1
             state = np.round(eta_hat, 3).tolist()
@@ -822,7 +833,7 @@ class Runtime:
                 t_ns,
                 EventLevel.ERROR,
                 EventCode.NOT_WINNING,
-                f"state {state} outside the winning set; stopping",
+                f"state {state} outside the winning and the safety set; stopping",
             )
             where = "outside the grid" if cell < 0 else "outside the winning set"
             if self.stats.decisions == 0:
@@ -836,13 +847,11 @@ class Runtime:
                     f"state {state} still {where} after "
                     f"{self.config.decision_period_s:g} s stopped: no safe input"
                 )
-        else:
-            indices = controller.safe_input_indices(eta_hat, reference, first)
-            if indices.size:
-                safe = controller.inputs[indices]
-                chosen_index = int(indices[self.select(safe, self._previous_input, eta_hat)])
+        elif indices.size:
+            safe = controller.inputs[indices]
+            chosen_index = int(indices[self.select(safe, self._previous_input, eta_hat)])
         chosen = controller.inputs[chosen_index].copy() if chosen_index >= 0 else np.zeros(3)
-        self._not_winning_before = math.isinf(value)
+        self._not_winning_before = math.isinf(value) and not query.staying
         if value != 0.0 and self.mode is Mode.AT_TARGET:
             self.mode = Mode.RUNNING  # pushed out of the target: steer back in
         self._set_reference(chosen)
@@ -854,7 +863,9 @@ class Runtime:
         self._last_choice_ns = t_ns if chosen_index >= 0 else None
         if chosen_index >= 0:
             self._first_left = max(self._first_left - 1, 0)
-            self.monitor.start(t_ns, controller.contract(eta_hat, chosen_index, reference, first))
+            self.monitor.start(
+                t_ns, controller.contract(eta_hat, chosen_index, reference, first, query.staying)
+            )
         self.stats.decisions += 1
         self.log.decision(
             Decision.from_arrays(
@@ -875,6 +886,25 @@ class Runtime:
                 report_t_ns=-1 if self._controller_layout is None else self._controller_layout.t_ns,
             )
         )
+
+    def _note_staying(self, t_ns: int, staying: bool, eta_hat: FloatArray) -> None:
+        """Say when the vessel starts waiting on the safety controller, and when it docks on."""
+        if staying == self._staying:
+            return
+        self._staying = staying
+        state = np.round(eta_hat, 3).tolist()
+        if staying:
+            self.stats.docking_lost += 1
+            self._event(
+                t_ns, EventLevel.WARN, EventCode.DOCKING_LOST,
+                f"docking is not winning from {state} (controller v{self.controller_version}): "
+                "staying in the safety set, slowing, until it wins again",
+            )  # fmt: skip
+        else:
+            self._event(
+                t_ns, EventLevel.INFO, EventCode.DOCKING_BACK,
+                f"docking is winning again from {state}: docking on",
+            )  # fmt: skip
 
     def _at_target(self, t_ns: int) -> None:
         if self.stats.target_reached_ns is None:

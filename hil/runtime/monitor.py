@@ -166,7 +166,12 @@ class Monitor:
         value = int(c.end_values(pose)[0])
         if not (0 <= value < c.value):
             shown = "losing" if value < 0 else str(value)
-            was = "a first decision's (any winning value)" if c.budget_class == 2 else str(c.value)
+            if c.staying:
+                shown, was = "outside the safety set", "a staying decision's (in it)"
+            elif c.budget_class == 2:
+                was = "a first decision's (any winning value)"
+            else:
+                was = str(c.value)
             out.append(
                 Violation(
                     EventCode.VALUE_NOT_DECREASING,

@@ -29,7 +29,9 @@ class RunStats:
     when a fresher one took over and `report_age_solved_s` the largest report age a
     controller in force was solved for (s; 0: none);
     `estimate_inconsistent_ns` the stamp of the pose at which the EKF's innovations
-    broke its noise model (None: consistent; :mod:`hil.controllers.consistency`).
+    broke its noise model (None: consistent; :mod:`hil.controllers.consistency`);
+    `staying_decisions` the decisions taken on the safety controller (docking not
+    winning) and `docking_lost` the episodes of them.
     """
 
     start_ns: int = 0
@@ -52,6 +54,8 @@ class RunStats:
     estimate_inconsistent_ns: int | None = None
     thruster_failures: int = 0
     not_winning_decisions: int = 0
+    staying_decisions: int = 0
+    docking_lost: int = 0
     tube_exits: int = 0
     successor_misses: int = 0
     value_not_decreasing: int = 0

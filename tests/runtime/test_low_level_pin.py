@@ -22,6 +22,7 @@ from hil.runtime.assembly import low_level_for
 from hil.runtime.loop import Runtime, World
 from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer
 from hil.runtime.settings import LoopConfig
+from hil.runtime.stack import DecisionQuery
 from hil.runtime.trace import MemoryLog
 from hil.sim.closed_loop import LowLevelConfig, simulate_closed_loop
 from hil.sim.plant import P_NU
@@ -65,8 +66,12 @@ class ScriptedController:
         self.decisions += 1
         return np.array([i], dtype=np.int64)
 
+    def query(self, state: F, reference: int, first: bool) -> DecisionQuery:
+        """The next row of the script, one step from the target."""
+        return DecisionQuery(0, 1.0, self.safe_input_indices(state, reference, first))
+
     def contract(
-        self, state: F, chosen: int, reference: int, first: bool
+        self, state: F, chosen: int, reference: int, first: bool, staying: bool = False
     ) -> DecisionContract | None:
         """Promise nothing: the runtime monitor judges no tick (no symbolic abstraction)."""
         return None

@@ -29,7 +29,7 @@ from hil.controllers.symbolic.errors import (
 from hil.controllers.symbolic.grid import Grid, obstacle_mask, target_mask
 from hil.controllers.symbolic.hull import free_masks, hull_half_extents, target_cells
 from hil.controllers.symbolic.problem import SymbolicProblem
-from hil.controllers.symbolic.selection import cost, select
+from hil.controllers.symbolic.selection import cost, select, wait_index
 from hil.controllers.symbolic.synthesis import ControllerSources, Synthesizer, Watch, synthesize
 
 __all__ = [
@@ -59,4 +59,5 @@ __all__ = [
     "tables_for",
     "target_cells",
     "target_mask",
+    "wait_index",
 ]

@@ -83,6 +83,9 @@ class DecisionContract:
         succ: Successor box (ox_min, ox_max, oy_min, oy_max), cells relative to (i0, j0).
         heading: Successor heading offsets (ok_min, ok_max), cells relative to k0.
         controller: The controller (values of the successor layer q).
+        staying: A decision of the safety controller (docking was not winning): the end
+            must lie in the safety set with q in force, not descend in value; `value` is
+            then 1 and :meth:`end_values` 0 in the safety set, -1 outside it.
     """
 
     grid: Grid
@@ -98,6 +101,7 @@ class DecisionContract:
     succ: tuple[int, int, int, int]
     heading: tuple[int, int]
     controller: Controller
+    staying: bool = False
 
     @staticmethod
     def of(
@@ -106,6 +110,7 @@ class DecisionContract:
         input_index: int,
         reference_index: int,
         first: bool,
+        staying: bool = False,
     ) -> DecisionContract:
         """Build the contract of choosing input `input_index` at `cell`.
 
@@ -115,6 +120,7 @@ class DecisionContract:
             input_index: The chosen input.
             reference_index: The input in force when the decision was taken.
             first: A first decision (every candidate budgeted as a change).
+            staying: A decision of the safety controller (see the attribute).
 
         Raises:
             SymbolicError: The cell is outside the grid or an input index out of range.
@@ -141,8 +147,11 @@ class DecisionContract:
             tau_s=t.tau_s,
             late_s=t.late_s,
             budget_class=c,
-            # A first decision promises only a winning end (any value).
-            value=_ANY_VALUE
+            # A first decision promises only a winning end (any value); a staying one an
+            # end in the safety set.
+            value=1
+            if staying
+            else _ANY_VALUE
             if first
             else controller.cell_decision_value((i0, j0, k0), reference_index, False),
             tube_x0=int(t.tube_x0[c, k0, q]),
@@ -150,6 +159,7 @@ class DecisionContract:
             succ=(int(s[0]), int(s[1]), int(s[2]), int(s[3])),
             heading=(int(h[0]), int(h[1])),
             controller=controller,
+            staying=staying,
         )
 
     # ------------------------------------------------------------------ cell sets (metres)
@@ -247,8 +257,13 @@ class DecisionContract:
         return out
 
     def end_values(self, poses: FloatArray) -> IntArray:
-        """Return V (chosen input in force) at each pose's cell, (N, 3) -> (N,); -1 losing."""
+        """Return V (chosen input in force) at each pose's cell, (N, 3) -> (N,); -1 losing.
+
+        For a staying decision: 0 in the safety set, -1 outside it.
+        """
         i, j, k = cells_of(self.grid, poses)
+        if self.staying:
+            return np.where(self.controller.safe_at(self.input_index, i, j, k), 0, -1)
         out: IntArray = self.controller.values_at(self.input_index, i, j, k)
         return out
 

@@ -26,6 +26,7 @@ from hil.controllers.symbolic.kernels import (
     safe_input_indices,
     state_value,
     state_values,
+    staying_input_indices,
 )
 from hil.controllers.symbolic.lattice import InputLattice
 
@@ -34,9 +35,9 @@ BoolArray = NDArray[np.bool_]
 I32Array = NDArray[np.int32]
 U64Array = NDArray[np.uint64]
 
-__all__ = ["Controller", "SynthesisStats"]
+__all__ = ["CellDecision", "Controller", "SynthesisStats"]
 
-_FORMAT = "hil-symbolic-controller-4"
+_FORMAT = "hil-symbolic-controller-5"
 _TABLE_FIELDS = ("succ", "heading", "tube_x0", "tube_n", "tube_y", "hull_psi", "yaw_index")
 
 
@@ -82,8 +83,27 @@ class SynthesisStats:
         return self.winning_cells / self.free_cells if self.free_cells else 0.0
 
 
+@dataclass(frozen=True, slots=True, eq=False)
+class CellDecision:
+    """What the controller answers at one cell: the one query a decision makes.
+
+    Attributes:
+        value: The decision's value (:meth:`Controller.cell_decision_value`); -1 when
+            docking is not winning there.
+        inputs: Input indices listed, shape (n,): the safe inputs for docking; where
+            docking is not winning, those that keep the vessel in the safety set
+            (`staying`); none in the target (hold) or where nothing is safe.
+        staying: Docking is not winning and `inputs` keep the vessel in the safety set
+            (:mod:`~hil.controllers.symbolic.safety`): wait there until docking wins again.
+    """
+
+    value: int
+    inputs: I32Array
+    staying: bool = False
+
+
 class Controller:
-    """A reach-avoid controller over (cell, reference in force).
+    """A reach-avoid controller over (cell, reference in force), with its safety set.
 
     Args:
         tables: The abstraction the controller was synthesized on.
@@ -95,6 +115,9 @@ class Controller:
             frontier kernel's heading padding, is not used by this layout).
         obstacles: Cells touching an inflated obstacle, shape (nx, ny) (pictures).
         stats: Figures of the synthesis; `winning_cells` is filled in here.
+        safe_set: The safety game's set (:mod:`~hil.controllers.symbolic.safety`), in
+            `winning`'s layout; None: not solved (an early controller), so a state that
+            does not win for docking has no input.
     """
 
     def __init__(
@@ -107,6 +130,7 @@ class Controller:
         pads: I32Array,
         obstacles: BoolArray,
         stats: SynthesisStats,
+        safe_set: U64Array | None = None,
     ) -> None:
         self._tables = tables
         self._lattice = lattice
@@ -117,6 +141,9 @@ class Controller:
         self._obstacles = np.ascontiguousarray(obstacles, dtype=bool)
         self._obstacles.flags.writeable = False
         self._out = np.empty(tables.n_inputs, dtype=np.int32)
+        self._safe = safe_set
+        m, npsi, nw, _, nx = planes.shape
+        self._no_planes = np.zeros((m, npsi, nw, 0, nx), dtype=np.uint64)
         self._best = np.empty(1, dtype=np.int32)
         self.rest_index = lattice.nearest(np.zeros(3))
         rest_values = self.layer_values(self.rest_index)
@@ -181,6 +208,27 @@ class Controller:
     def obstacles(self) -> BoolArray:
         """Return the cells touching an inflated obstacle (read-only), shape (nx, ny)."""
         return self._obstacles
+
+    @property
+    def safe_words(self) -> U64Array | None:
+        """Return the safety set's bits (winning bits' layout), None if not solved."""
+        return self._safe
+
+    def safe_counts(self, previous: int | None = None) -> tuple[int, int]:
+        """Return (states in the safety set, those of them not winning) with `previous` in force.
+
+        Counted over the cells (nx, ny, npsi) of one layer (None: at rest); the second
+        figure is where a vessel waits instead of docking. (0, 0) without a safety set.
+        """
+        if self._safe is None:
+            return 0, 0
+        p = self.reference_index(previous)
+        safe = self._safe[p]
+        waiting = safe & ~self._W[p]
+        return (
+            int(np.unpackbits(safe.view(np.uint8)).sum()),
+            int(np.unpackbits(waiting.view(np.uint8)).sum()),
+        )
 
     @property
     def has_winning_start(self) -> bool:
@@ -272,6 +320,75 @@ class Controller:
         self.safe_input_indices_at(cell, previous, first=True)
         return int(self._best[0])
 
+    def decide_at(
+        self, cell: tuple[int, int, int], previous: int | None = None, first: bool = False
+    ) -> CellDecision:
+        """Return the value and the listed inputs at a cell: everything a decision asks.
+
+        Docking first (:meth:`cell_decision_value`, :meth:`safe_input_indices_at`, each
+        kernel run once); where docking is not winning, the inputs that keep the vessel
+        in the safety set, if the controller has one (:meth:`staying_input_indices_at`).
+        """
+        g = self.grid
+        i, j, k = cell
+        if not (0 <= i < g.nx and 0 <= j < g.ny and 0 <= k < g.npsi):
+            return CellDecision(-1, np.empty(0, dtype=np.int32))
+        if first:
+            inputs = self.safe_input_indices_at(cell, previous, first=True)
+            value = int(self._best[0])
+        else:
+            value = self.cell_value(cell, previous)
+            inputs = (
+                self.safe_input_indices_at(cell, previous)
+                if value > 0
+                else np.empty(0, dtype=np.int32)
+            )
+        if value >= 0:
+            return CellDecision(value, inputs)
+        staying = self.staying_input_indices_at(cell, previous, first)
+        return CellDecision(-1, staying, staying.size > 0)
+
+    def staying_input_indices_at(
+        self, cell: tuple[int, int, int], previous: int | None = None, first: bool = False
+    ) -> I32Array:
+        """Return the inputs at a cell that keep the vessel in the safety set, shape (n,).
+
+        Candidates and budget classes as :meth:`safe_input_indices_at`; an input stays
+        when its tube is free and every successor is in the safety set with that input in
+        force. Empty without a safety set, or off the grid.
+        """
+        g = self.grid
+        i, j, k = cell
+        if self._safe is None or not (0 <= i < g.nx and 0 <= j < g.ny and 0 <= k < g.npsi):
+            return np.empty(0, dtype=np.int32)
+        t = self._tables
+        n = staying_input_indices(
+            self._safe, self._no_planes, self._viable, self._pads, t.succ, t.heading,
+            self._lattice.neighbours, self._lattice.n_neighbours, g.ny,
+            self.reference_index(previous), i, j, k, first, self._out,
+        )  # fmt: skip
+        return self._out[:n].copy()
+
+    def safe_at(
+        self, layer: int, i: NDArray[np.int64], j: NDArray[np.int64], k: NDArray[np.int64]
+    ) -> NDArray[np.bool_]:
+        """Return whether cells (i, j, k), each (N,), are safe with `layer` in force.
+
+        In the safety set (:mod:`~hil.controllers.symbolic.safety`); all False without one.
+        """
+        g = self.grid
+        ii = np.asarray(i, dtype=np.int64)
+        jj = np.asarray(j, dtype=np.int64)
+        kk = np.mod(np.asarray(k, dtype=np.int64), g.npsi)
+        ok = (ii >= 0) & (ii < g.nx) & (jj >= 0) & (jj < g.ny)
+        out = np.zeros(ii.shape[0], dtype=bool)
+        if self._safe is not None:
+            found = state_values(
+                self._safe, self._no_planes, self._pads, int(layer), ii[ok], jj[ok], kk[ok]
+            )
+            out[ok] = found >= 0
+        return out
+
     def first_decision_winning(self, previous: int | None = None) -> BoolArray:
         """Return where a first decision finds a safe input, shape (nx, ny, npsi).
 
@@ -320,7 +437,7 @@ class Controller:
     # ------------------------------------------------------------------ files
 
     def save(self, path: str | Path) -> None:
-        """Write the controller (tables, winning bits, values, tubes) to a compressed .npz."""
+        """Write the controller (tables, winning bits, values, tubes, safety set) to a .npz."""
         t = self._tables
         g = self.grid
         with Path(path).open("wb") as fh:
@@ -337,6 +454,7 @@ class Controller:
                 winning=self._W,
                 planes=self._planes,
                 viable=self._viable,
+                safe=self._safe if self._safe is not None else np.zeros(0, dtype=np.uint64),
                 pads=self._pads,
                 obstacles=np.packbits(self._obstacles, axis=None),
                 stats=np.array(list(asdict(self.stats).values()), dtype=np.float64),
@@ -376,6 +494,8 @@ class Controller:
                 planes = np.ascontiguousarray(data["planes"], dtype=np.uint64)
                 viable = np.ascontiguousarray(data["viable"], dtype=np.uint64)
                 pads = np.ascontiguousarray(data["pads"], dtype=np.int32)
+                safe_raw = np.ascontiguousarray(data["safe"], dtype=np.uint64)
+                safe = safe_raw if safe_raw.size else None
                 obstacles = (
                     np.unpackbits(data["obstacles"], count=grid.nx * grid.ny)
                     .astype(bool)
@@ -395,6 +515,7 @@ class Controller:
                 or planes.shape[4] != grid.nx
                 or viable.shape != (N_CLASSES, m, grid.nx, grid.npsi, (grid.ny + 63) // 64)
                 or winning.shape[0] != m
+                or (safe is not None and safe.shape != winning.shape)
             ):
                 raise ControllerFileError(f"{str(path)!r}: arrays do not fit the grid and inputs")
             lattice = InputLattice.of(tables.inputs)
@@ -404,4 +525,4 @@ class Controller:
             raise ControllerFileError(f"cannot read controller {str(path)!r}: {err}") from err
         except SymbolicError as err:
             raise ControllerFileError(f"cannot read controller {str(path)!r}: {err}") from err
-        return cls(tables, lattice, winning, planes, viable, pads, obstacles, stats)
+        return cls(tables, lattice, winning, planes, viable, pads, obstacles, stats, safe)

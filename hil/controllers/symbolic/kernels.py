@@ -24,6 +24,7 @@ __all__ = [
     "safe_input_indices",
     "state_value",
     "state_values",
+    "staying_input_indices",
 ]
 
 _ZERO = np.uint64(0)
@@ -126,7 +127,6 @@ def safe_input_indices(
     best[0] is set to 1 + the least, over the safe inputs, of their largest successor
     value (the value a first decision earns), -1 with none.
     """
-    npsi = planes.shape[1]
     best[0] = -1
     vc = state_value(W, planes, pads, p, i, j, k)
     if not first and vc <= 0:
@@ -143,31 +143,88 @@ def safe_input_indices(
         cls = 2 if first else (0 if u == p else 1)
         if (viable[cls, u, i, k, w] >> b) & _ONE == _ZERO:
             continue
-        ok_input = True
-        worst = 0
-        for ox in range(succ[cls, k, u, 0], succ[cls, k, u, 1] + 1):
-            for oy in range(succ[cls, k, u, 2], succ[cls, k, u, 3] + 1):
-                jj = j + oy
-                if jj < 0 or jj >= ny:
-                    ok_input = False
-                    break
-                for ok in range(heading[cls, u, 0], heading[cls, u, 1] + 1):
-                    v = state_value(W, planes, pads, u, i + ox, jj, (k + ok) % npsi)
-                    if v < 0 or v >= limit:
-                        ok_input = False
-                        break
-                    worst = max(worst, v)
-                if not ok_input:
-                    break
-            if not ok_input:
-                break
-        if ok_input:
+        worst = _worst_successor(W, planes, pads, succ, heading, ny, cls, u, i, j, k, limit)
+        if worst >= 0:
             out[n] = u
             n += 1
             if best[0] < 0 or worst + 1 < best[0]:
                 best[0] = worst + 1
             if any_only:
                 break
+    return n
+
+
+@njit
+def _worst_successor(
+    W: U64Array,
+    planes: U64Array,
+    pads: I32Array,
+    succ: I32Array,
+    heading: I32Array,
+    ny: int,
+    cls: int,
+    u: int,
+    i: int,
+    j: int,
+    k: int,
+    limit: int,
+) -> int:
+    """Return the largest value over input u's class-cls successors of (i, j, k).
+
+    -1 if any successor is off the grid, losing (not in W's layer u) or of value >= limit.
+    """
+    npsi = planes.shape[1]
+    worst = 0
+    for ox in range(succ[cls, k, u, 0], succ[cls, k, u, 1] + 1):
+        for oy in range(succ[cls, k, u, 2], succ[cls, k, u, 3] + 1):
+            jj = j + oy
+            if jj < 0 or jj >= ny:
+                return -1
+            for ok in range(heading[cls, u, 0], heading[cls, u, 1] + 1):
+                v = state_value(W, planes, pads, u, i + ox, jj, (k + ok) % npsi)
+                if v < 0 or v >= limit:
+                    return -1
+                worst = max(worst, v)
+    return worst
+
+
+@njit
+def staying_input_indices(
+    S: U64Array,
+    no_planes: U64Array,
+    viable: U64Array,
+    pads: I32Array,
+    succ: I32Array,
+    heading: I32Array,
+    neighbours: I32Array,
+    n_neighbours: I32Array,
+    ny: int,
+    p: int,
+    i: int,
+    j: int,
+    k: int,
+    first: bool,
+    out: I32Array,
+) -> int:
+    """Write the inputs at cell (i, j, k), reference p, that keep the state in S; return n.
+
+    S is the safety game's set (:mod:`safety`) in the winning bits' layout; no_planes an
+    array of shape (m, npsi, nw, 0, nx) (a state of S has "value" 0). Candidates and
+    classes as in :func:`safe_input_indices`; an input stays when its tube is free and
+    every successor is in S's layer of that input. The state itself need not be in S
+    (a first decision's moving start).
+    """
+    n = 0
+    w = j >> 6
+    b = np.uint64(j & 63)
+    for c_idx in range(n_neighbours[p] + 1):
+        u = p if c_idx == 0 else neighbours[p, c_idx - 1]
+        cls = 2 if first else (0 if u == p else 1)
+        if (viable[cls, u, i, k, w] >> b) & _ONE == _ZERO:
+            continue
+        if _worst_successor(S, no_planes, pads, succ, heading, ny, cls, u, i, j, k, 1) >= 0:
+            out[n] = u
+            n += 1
     return n
 
 

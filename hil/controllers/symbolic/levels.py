@@ -130,7 +130,12 @@ class LevelSolver:
         return n
 
     def solve(self) -> int:
-        """Advance to the fixed point; return its level (the last with joins), -1: too many."""
+        """Advance to the fixed point; return its level (the last with joins), -1: too many.
+
+        Too many: the planes hold no more levels; the solve then stops there (:attr:`done`,
+        :attr:`level` the planes' last): every state joined holds its final value, the
+        states of larger values are not set.
+        """
         if self.done:
             return self.level
         serial, _ = self._threaded()
@@ -141,9 +146,11 @@ class LevelSolver:
             while n > 0:
                 n = self.advance()
             levels = self.level if n == 0 else -1
-        if levels >= 0:
+        if levels < 0:
+            self.level = (1 << self._pt.shape[3]) - 1
+        else:
             self.level = levels
-            self.done = True
+        self.done = True
         return levels
 
     def joined(self, p: int, i: int, j: int, k: int) -> bool:

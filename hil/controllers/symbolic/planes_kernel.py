@@ -54,6 +54,8 @@ I32Array = NDArray[np.int32]
 __all__ = [
     "advance_parallel",
     "advance_serial",
+    "box_test",
+    "changed_band",
     "from_sweep_layout",
     "init_planes_state",
     "nested_classes",
@@ -126,7 +128,7 @@ def init_planes_state(goal: U64Array, Wt: U64Array, ch: I32Array, px: int, pw: i
 
 
 @njit
-def _box_test(
+def box_test(
     Wt: U64Array,
     u: int,
     k0: int,
@@ -229,6 +231,28 @@ def _box_test(
 
 
 @njit
+def changed_band(
+    ch: I32Array, u: int, k0: int, h0: int, h1: int, box: I32Array, nx: int
+) -> tuple[int, int]:
+    """Return the x rows [lo, hi] of heading k0 whose box reaches a changed row of layer u.
+
+    The box (ox0, ox1, ...) spans headings k0 + h0 .. k0 + h1; ch (m, npsi, 2) holds each
+    heading's changed rows; lo > hi: none. A box test changes only where a cell of its box
+    changed, so only these rows need it.
+    """
+    npsi = ch.shape[1]
+    cl = nx
+    chh = -1
+    for ok in range(h0, h1 + 1):
+        k = (k0 + ok) % npsi
+        cl = min(cl, ch[u, k, 0])
+        chh = max(chh, ch[u, k, 1])
+    if cl > chh:
+        return nx, -1
+    return max(cl - box[1], 0), min(chh - box[0], nx - 1)
+
+
+@njit
 def _sweep_input(
     u: int,
     Wt: U64Array,
@@ -264,17 +288,8 @@ def _sweep_input(
             band[u, k0, 1] = -1
             h0 = heading[c, u, 0]
             h1 = heading[c, u, 1]
-            cl = nx
-            chh = -1
-            for ok in range(h0, h1 + 1):
-                k = (k0 + ok) % npsi
-                cl = min(cl, ch[u, k, 0])
-                chh = max(chh, ch[u, k, 1])
-            if cl > chh:
-                continue
             box = succ[c, k0, u]
-            lo = max(cl - box[1], 0)
-            hi = min(chh - box[0], nx - 1)
+            lo, hi = changed_band(ch, u, k0, h0, h1, box, nx)
             if lo > hi:
                 continue
             # Candidates: viable and not yet in W_u (class 0) / in B_u (class 1); a
@@ -302,7 +317,7 @@ def _sweep_input(
             lo = first
             hi = last
             nb = hi + 1 - lo
-            _box_test(Wt, u, k0, h0, h1, box, lo, hi, px, pw, H, L, R, out)
+            box_test(Wt, u, k0, h0, h1, box, lo, hi, px, pw, H, L, R, out)
             dst = nA if c == 0 else nB
             for w in range(nw):
                 vw = Vt[c, u, k0, w, lo : hi + 1]

@@ -15,7 +15,7 @@ from hil.controllers.symbolic.errors import EmptyInputSetError
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["W_BACKWARD", "W_FORWARD", "cost", "select"]
+__all__ = ["W_BACKWARD", "W_FORWARD", "cost", "select", "wait_index"]
 
 W_BACKWARD: FloatArray = np.array([7.5, 3.0, 1.0, 1.0, 1.0, 2.5])
 """Diagonal of W for inputs with negative surge."""
@@ -49,3 +49,18 @@ def select(safe_inputs: FloatArray, previous: FloatArray | None = None) -> Float
         raise EmptyInputSetError(f"no safe input to select from (previous {previous!r})")
     out: FloatArray = sigma[int(np.argmin(cost(sigma, previous)))].copy()
     return out
+
+
+def wait_index(
+    staying_inputs: FloatArray,
+    _previous: FloatArray | None = None,
+    _state: FloatArray | None = None,
+) -> int:
+    """Return the row of `staying_inputs` (k, 3) a waiting vessel flies: the slowest by J.
+
+    Waiting on the safety controller (docking not winning), the vessel slows toward
+    rest: J against rest (previous input zero) weighs speed with the paper's weights
+    (backward and sway dearer), and the lattice keeps each change to one step. The
+    previous input and the state, which other selections take, are not used.
+    """
+    return int(np.argmin(cost(staying_inputs, np.zeros(3))))

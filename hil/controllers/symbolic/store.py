@@ -5,11 +5,12 @@ machine); every ``hil run``, ``hil replay``, ``hil inspect`` and campaign worker
 layout solved before reads it back instead (:class:`ControllerStore`, used by
 :meth:`~hil.controllers.symbolic.synthesis.Synthesizer.solve_problem`).
 
-A file holds the winning bits without their padding, the value bit planes and the
-tube-free "viable" words (:class:`SolvedLayout`). Layout of ``<folder>/<key>.ctl``::
+A file holds the winning bits without their padding, the value bit planes, the
+tube-free "viable" words and the safety set's bits (:class:`SolvedLayout`). Layout of
+``<folder>/<key>.ctl``::
 
     b"HILCTL"  format (uint16 LE)  header length (uint32 LE)  header (JSON, UTF-8)
-    zstd frames of 16 MiB each: the three arrays back to back (uint64 LE, C order)
+    zstd frames of 16 MiB each: the four arrays back to back (uint64 LE, C order)
     blake2b-256 of every byte before it
 
 Measured on the paper's controller (175 inputs, 160 x 120 x 60 cells), on a loaded
@@ -61,7 +62,7 @@ __all__ = [
 BoolArray = NDArray[np.bool_]
 U64Array = NDArray[np.uint64]
 
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
 """Layout of a file (header, arrays, checksum); a file of another version is deleted."""
 
 DEFAULT_BUDGET_MB = 4096
@@ -127,6 +128,8 @@ class SolvedLayout:
         planes: Value bit planes, shape (m, npsi, nw, n_planes, nx).
         viable: Tube-free words per class, shape (3, m, nx, npsi, nw) (stored: reading
             them is cheaper than rebuilding them from the masks).
+        safe: The safety set's bits without padding, shape (m, npsi, nw, nx)
+            (:mod:`~hil.controllers.symbolic.safety`).
         levels: Fixed-point iterations of the solve.
         solve_seconds: Wall time of the solve that produced it (s).
         threads: Threads that solve ran on.
@@ -135,6 +138,7 @@ class SolvedLayout:
     winning: U64Array
     planes: U64Array
     viable: U64Array
+    safe: U64Array
     levels: int
     solve_seconds: float
     threads: int
@@ -200,8 +204,8 @@ class ControllerStore:
 
         Args:
             key: :func:`solve_key` of the problem.
-            shapes: The shapes the winning words, the value planes and the viable words
-                must have (:class:`SolvedLayout`).
+            shapes: The shapes the winning words, the value planes, the viable words and
+                the safety set's words must have (:class:`SolvedLayout`).
         """
         if not self.enabled:
             return None
@@ -292,7 +296,7 @@ def _unlink(path: Path) -> bool:
 
 
 def _arrays(solved: SolvedLayout) -> tuple[U64Array, ...]:
-    return solved.winning, solved.planes, solved.viable
+    return solved.winning, solved.planes, solved.viable, solved.safe
 
 
 def _chunks(arrays: Sequence[U64Array], size: int) -> Iterator[bytes | memoryview]:
@@ -368,8 +372,8 @@ def _decode(data: bytes, key: str, shapes: tuple[tuple[int, ...], ...]) -> Solve
         arrays.append(out[start : start + n].view(np.uint64).reshape(shape))
         start += n
     return SolvedLayout(
-        arrays[0], arrays[1], arrays[2], int(header["levels"]), float(header["solve_seconds"]),
-        int(header["threads"]),
+        arrays[0], arrays[1], arrays[2], arrays[3], int(header["levels"]),
+        float(header["solve_seconds"]), int(header["threads"]),
     )  # fmt: skip
 
 

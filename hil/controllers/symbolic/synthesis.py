@@ -27,6 +27,7 @@ from hil.controllers.symbolic.lattice import InputLattice
 from hil.controllers.symbolic.levels import LevelSolver
 from hil.controllers.symbolic.planes_kernel import from_sweep_layout, nested_classes
 from hil.controllers.symbolic.problem import SymbolicProblem
+from hil.controllers.symbolic.safety import solve_safe_set
 from hil.controllers.symbolic.store import ControllerStore, SolvedLayout, solve_key
 from hil.controllers.symbolic.sweep import (
     advance_level_parallel,
@@ -370,22 +371,29 @@ class Synthesizer:
         m = self._tables.n_inputs
         start = time.perf_counter()
         nw = (ny + 63) // 64
+        words = (m, npsi, nw, nx)
         solved = store.load(
-            key, ((m, npsi, nw, nx), (m, npsi, nw, N_PLANES, nx), (N_CLASSES, m, nx, npsi, nw))
+            key, (words, (m, npsi, nw, N_PLANES, nx), (N_CLASSES, m, nx, npsi, nw), words)
         )
         if solved is None:
             return None
-        px, _, pw = (int(p) for p in self._pads)
-        W = np.zeros((m, npsi, nw + 2 * pw, nx + 2 * px), dtype=np.uint64)
-        W[:, :, pw : pw + nw, px : px + nx] = solved.winning
+        W, safe = (self._padded(a) for a in (solved.winning, solved.safe))
         return Controller(
             self._tables, self._lattice, W, solved.planes, solved.viable, self._pads,
             obstacles.astype(bool), SynthesisStats(
                 levels=solved.levels, seconds=solved.solve_seconds, winning_cells=0,
                 free_cells=free_cells, target_cells=int(target.sum()),
                 threads=solved.threads, loaded_seconds=time.perf_counter() - start,
-            ),
+            ), safe,
         )  # fmt: skip
+
+    def _padded(self, words: U64Array) -> U64Array:
+        """Return words (m, npsi, nw, nx) in the winning bits' padded layout."""
+        m, npsi, nw, nx = words.shape
+        px, _, pw = (int(p) for p in self._pads)
+        out = np.zeros((m, npsi, nw + 2 * pw, nx + 2 * px), dtype=np.uint64)
+        out[:, :, pw : pw + nw, px : px + nx] = words
+        return out
 
     def _write(self, store: ControllerStore, key: str, controller: Controller) -> None:
         """Write `controller` to the store from a thread: compressing takes about a second.
@@ -393,13 +401,17 @@ class Synthesizer:
         Not a daemon thread: a process that ends right after a solve still finishes
         the file (an interrupted write leaves only a temporary file).
         """
-        W, pads = controller.winning_words, controller.pads
+        pads = controller.pads
         px, _, pw = (int(p) for p in pads)
         nx, ny, _ = self._tables.grid.shape
         s = controller.stats
+        safe = controller.safe_words
+        if safe is None:
+            return  # only complete controllers (with their safety set) are stored
+        rows = (slice(None), slice(None), slice(pw, pw + (ny + 63) // 64), slice(px, px + nx))
         solved = SolvedLayout(
-            W[:, :, pw : pw + (ny + 63) // 64, px : px + nx],
-            controller.value_planes, controller.viable_words, s.levels, s.seconds, s.threads,
+            controller.winning_words[rows], controller.value_planes, controller.viable_words,
+            safe[rows], s.levels, s.seconds, s.threads,
         )  # fmt: skip
         thread = threading.Thread(
             target=store.save, args=(key, solved), name="hil-controller-store"
@@ -518,7 +530,7 @@ class Synthesizer:
                 if changed == 0:
                     break
                 if level + 1 > 2**N_PLANES - 1:
-                    raise GridError(f"the fixed point needs more than {2**N_PLANES - 1} levels")
+                    break  # capped: see _planes_stages
                 changed = advance(level, *args)
                 if changed > 0:
                     level += 1
@@ -548,9 +560,12 @@ class Synthesizer:
                     yield W, planes, solver.level, False
                     break
                 if solver.advance() < 0:
-                    raise GridError(f"the fixed point needs more than {2**N_PLANES - 1} levels")
-        if solver.solve() < 0:
-            raise GridError(f"the fixed point needs more than {2**N_PLANES - 1} levels")
+                    break
+        # A fixed point of more levels than the value planes hold stops at their last
+        # level: every state joined so far keeps its value and safe inputs (sound), the
+        # states farther from the target are left out (not winning), as in an early
+        # controller; the safety controller still covers them.
+        solver.solve()
         W, planes = solver.export()
         yield W, planes, solver.level, True
 
@@ -616,9 +631,17 @@ class Synthesizer:
         else:
             stages = self._frontier_stages(viable, goal, threads, watch)
         for W, planes, levels, complete in stages:
+            safe = None
+            if complete:
+                lat = self._lattice
+                safe = solve_safe_set(
+                    viable, self._pads, t.succ, t.heading, lat.neighbours, lat.n_neighbours,
+                    threads,
+                ).bits  # fmt: skip
             yield self._controller(
-                W, planes, viable, levels, target, obstacles, free_cells, t0, threads, complete
-            )
+                W, planes, viable, levels, target, obstacles, free_cells, t0, threads, complete,
+                safe,
+            )  # fmt: skip
 
     def begin(self, free: BoolArray, target: BoolArray) -> LevelSolver:
         """Start a solve driven one BFS level per call (masks as :meth:`solve`'s).
@@ -672,6 +695,7 @@ class Synthesizer:
         t0: float,
         threads: int,
         complete: bool = True,
+        safe: U64Array | None = None,
     ) -> Controller:
         npsi = self._tables.grid.npsi
         seconds = time.perf_counter() - t0
@@ -682,7 +706,7 @@ class Synthesizer:
                 free_cells=int((~obstacles).sum()) * npsi if free_cells is None else free_cells,
                 target_cells=int(target.sum()),
                 threads=threads, complete=complete,
-            ),
+            ), safe,
         )  # fmt: skip
 
 

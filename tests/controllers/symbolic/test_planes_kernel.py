@@ -12,6 +12,8 @@ import numpy as np
 import pytest
 
 from hil.controllers.symbolic import Controller, Grid, GridError, SymbolicProblem, Synthesizer
+from hil.controllers.symbolic.kernels import layer_values
+from hil.controllers.symbolic.levels import LevelSolver
 from hil.controllers.symbolic.planes_kernel import nested_classes
 from hil.core.shapes import Rect
 from tests.controllers.symbolic import tiny
@@ -113,3 +115,29 @@ def test_containment_is_checked_and_unknown_kernels_refused(problem: SymbolicPro
         assert not nested_classes(swapped, tables.heading, viable[:, :, :0])
     with pytest.raises(GridError):
         Synthesizer(tables, kernel="dense")
+
+
+def test_a_fixed_point_longer_than_the_planes_stops_at_their_last_level(
+    problem: SymbolicProblem,
+) -> None:
+    # Two planes hold values up to 3: the solve stops there with exactly the states of
+    # value <= 3, each with its final value (sound: the others are left out).
+    tables, _ = problem.tables(use_cache=False)
+    synthesizer = Synthesizer(tables, memo=False)
+    full = synthesizer.solve_problem(problem)
+    assert full.stats.levels > 3
+    flat = tables.hull_psi.reshape(-1, 2)
+    free = problem.free_masks(flat[:, 0], flat[:, 1])
+    target = problem.target_cells(problem.heading_free())
+    viable, goal = synthesizer._words(free, target)
+    axes = synthesizer.lattice.axes
+    solver = LevelSolver(goal, viable, synthesizer._pads, tables.succ, tables.heading,
+                         (len(axes[0]), len(axes[1]), len(axes[2])), n_planes=2)  # fmt: skip
+    assert solver.solve() == -1
+    assert solver.done
+    assert solver.level == 3
+    W, planes = solver.export()
+    for p in range(0, tables.n_inputs, 5):
+        final = full.layer_values(p)
+        got = layer_values(W, planes, solver.pads, p, tables.grid.ny)
+        np.testing.assert_array_equal(got, np.where(final <= 3, final, -1))

@@ -198,14 +198,15 @@ def _layout(seed: int, size: int = 4, noise: bool = False) -> SolvedLayout:
     shape = (3, size, size, 1)
     if noise:
         rng = np.random.default_rng(seed)
-        words = rng.integers(0, 2**63, size=12 * 3 * size * size, dtype=np.uint64)
+        words = rng.integers(0, 2**63, size=13 * 3 * size * size, dtype=np.uint64)
     else:
-        words = np.full(12 * 3 * size * size, seed, dtype=np.uint64)
+        words = np.full(13 * 3 * size * size, seed, dtype=np.uint64)
     n = 3 * size * size
     return SolvedLayout(
         words[:n].reshape(shape),
         words[n : 9 * n].reshape((*shape, 8)),
-        words[9 * n :].reshape((3, *shape)),
+        words[9 * n : 12 * n].reshape((3, *shape)),
+        words[12 * n :].reshape(shape),
         levels=seed,
         solve_seconds=1.0,
         threads=1,
@@ -213,8 +214,8 @@ def _layout(seed: int, size: int = 4, noise: bool = False) -> SolvedLayout:
 
 
 def _shapes(shape: tuple[int, ...]) -> tuple[tuple[int, ...], ...]:
-    """Return the shapes of a :func:`_layout`'s winning words, planes and viable words."""
-    return shape, (*shape, 8), (3, *shape)
+    """Return the shapes of a :func:`_layout`'s winning words, planes, viable and safe words."""
+    return shape, (*shape, 8), (3, *shape), shape
 
 
 def _load(store: ControllerStore, key: str) -> SolvedLayout | None:
@@ -260,8 +261,8 @@ def test_a_stored_layout_reads_back_bit_for_bit(
     read = _load(store, "k")
     assert read is not None
     for a, b in zip(
-        (written.winning, written.planes, written.viable),
-        (read.winning, read.planes, read.viable),
+        (written.winning, written.planes, written.viable, written.safe),
+        (read.winning, read.planes, read.viable, read.safe),
         strict=True,
     ):
         np.testing.assert_array_equal(a, b)

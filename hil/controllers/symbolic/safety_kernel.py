@@ -1,0 +1,268 @@
+"""The safety game's greatest fixed point in the bit-plane layout: where the vessel can stay.
+
+Same game as the reach-avoid solve (:mod:`planes_kernel`): a state is a cell with the
+reference in force p; at each decision the vessel holds p (class 0) or changes to a
+lattice neighbour u in N(p) (class 1). Without a target, the largest set S it can stay
+in forever (hull off the grown obstacles, inside the walls, every tube free) is
+
+    S_p = (V0_p and Pre0(S_p))  or  OR over u in N(p) of (V1_u and Pre1(S_u)),
+
+Vc_u the states whose tube is free for u in class c, Pre_c(S_u) those whose class-c
+successor box (cells and heading range) lies in S_u. It is found by iterating from
+S0_p = V0_p or OR_u V1_u, which holds S and contains its own image, so the iterates fall
+to S exactly (Knaster-Tarski on a finite lattice).
+
+Work follows the removals: the box test of a state changes only when a cell of its box
+left S at the last iteration, so each iteration tests, per (input, heading, class), only
+the x band whose boxes reach a row that changed (the reach kernel's banding, mirrored),
+and only states still holding that option (A_u = V0_u and Pre0, B_u = V1_u and Pre1 only
+lose states). Then each S_p is recomputed on the rows where A_p or some B_u, u in N(p),
+lost a state.
+
+Layout (:mod:`planes_kernel`'s, x contiguous): ``St`` (m, npsi, nw + 2 pw, nx + 2 px)
+with zero padding; ``At``, ``Bt`` (m, npsi, nw, nx); ``Vt`` (2, m, npsi, nw, nx); ``ch``,
+``band_a``, ``band_b`` (m, npsi, 2) x ranges [lo, hi] of the rows that lost bits at the
+last iteration (lo > hi: none).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import prange
+from numpy.typing import NDArray
+
+from hil.controllers.symbolic.planes_kernel import box_test, changed_band
+from hil.core.jit import njit, njit_parallel
+
+U64Array = NDArray[np.uint64]
+I32Array = NDArray[np.int32]
+
+__all__ = ["init_safety_state", "safety_iterate_parallel", "safety_iterate_serial"]
+
+_ZERO = np.uint64(0)
+
+
+@njit
+def init_safety_state(
+    Vt: U64Array,
+    neighbours: I32Array,
+    n_neighbours: I32Array,
+    St: U64Array,
+    At: U64Array,
+    Bt: U64Array,
+    ch: I32Array,
+    px: int,
+    pw: int,
+) -> None:
+    """Set S0_p = V0_p or OR over u in N(p) of V1_u, A = V0, B = V1; every row "changed"."""
+    _, m, npsi, nw, nx = Vt.shape
+    for u in range(m):
+        for k in range(npsi):
+            ch[u, k, 0] = 0
+            ch[u, k, 1] = nx - 1
+            for w in range(nw):
+                a = At[u, k, w]
+                b = Bt[u, k, w]
+                v0 = Vt[0, u, k, w]
+                v1 = Vt[1, u, k, w]
+                for i in range(nx):
+                    a[i] = v0[i]
+                    b[i] = v1[i]
+    for p in range(m):
+        for k in range(npsi):
+            for w in range(nw):
+                s = St[p, k, pw + w, px : px + nx]
+                v0 = Vt[0, p, k, w]
+                for i in range(nx):
+                    s[i] = v0[i]
+                for c in range(n_neighbours[p]):
+                    v1 = Vt[1, neighbours[p, c], k, w]
+                    for i in range(nx):
+                        s[i] |= v1[i]
+
+
+@njit
+def _test_input(
+    u: int,
+    St: U64Array,
+    At: U64Array,
+    Bt: U64Array,
+    band_a: I32Array,
+    band_b: I32Array,
+    ch: I32Array,
+    succ: I32Array,
+    heading: I32Array,
+    px: int,
+    pw: int,
+) -> None:
+    """Remove from A_u, B_u the states whose box left S_u; set their bands of removed rows.
+
+    Reads St[u] and ch[u], writes only input u's entries (inputs may run side by side).
+    """
+    npsi = St.shape[1]
+    nw = At.shape[2]
+    nx = At.shape[3]
+    xp = St.shape[3]
+    H = np.empty((nw + 2, xp), dtype=np.uint64)
+    L = np.empty((nw, xp), dtype=np.uint64)
+    R = np.empty((nw, xp), dtype=np.uint64)
+    out = np.empty((nw, nx), dtype=np.uint64)
+    for k0 in range(npsi):
+        for c in range(2):
+            band = band_a if c == 0 else band_b
+            X = At if c == 0 else Bt
+            band[u, k0, 0] = nx
+            band[u, k0, 1] = -1
+            h0 = heading[c, u, 0]
+            h1 = heading[c, u, 1]
+            box = succ[c, k0, u]
+            lo, hi = changed_band(ch, u, k0, h0, h1, box, nx)
+            first = nx
+            last = -1
+            for i in range(lo, hi + 1):
+                anyx = _ZERO
+                for w in range(nw):
+                    anyx |= X[u, k0, w, i]
+                if anyx != _ZERO:
+                    first = min(first, i)
+                    last = i
+            if first > last:
+                continue
+            lo = first
+            hi = last
+            box_test(St, u, k0, h0, h1, box, lo, hi, px, pw, H, L, R, out)
+            first = nx
+            last = -1
+            for i in range(lo, hi + 1):
+                lost = _ZERO
+                for w in range(nw):
+                    x = X[u, k0, w, i]
+                    kept = x & out[w, i]
+                    lost |= x & ~kept
+                    X[u, k0, w, i] = kept
+                if lost != _ZERO:
+                    first = min(first, i)
+                    last = i
+            band[u, k0, 0] = first
+            band[u, k0, 1] = last
+
+
+@njit
+def _update_heading(
+    k: int,
+    St: U64Array,
+    At: U64Array,
+    Bt: U64Array,
+    band_a: I32Array,
+    band_b: I32Array,
+    ch: I32Array,
+    neighbours: I32Array,
+    n_neighbours: I32Array,
+    px: int,
+    pw: int,
+) -> int:
+    """S_p &= A_p or OR of B_u (u in N(p)) at heading k, on rows some option lost; return rows.
+
+    Writes ch[:, k] and heading k of St only.
+    """
+    m = St.shape[0]
+    nw = At.shape[2]
+    nx = At.shape[3]
+    n_changed = 0
+    for p in range(m):
+        lo = band_a[p, k, 0]
+        hi = band_a[p, k, 1]
+        for c in range(n_neighbours[p]):
+            u = neighbours[p, c]
+            if band_b[u, k, 0] <= band_b[u, k, 1]:
+                lo = min(lo, band_b[u, k, 0])
+                hi = max(hi, band_b[u, k, 1])
+        ch[p, k, 0] = nx
+        ch[p, k, 1] = -1
+        if lo > hi:
+            continue
+        first = nx
+        last = -1
+        for i in range(lo, hi + 1):
+            lost = _ZERO
+            for w in range(nw):
+                keep = At[p, k, w, i]
+                for c in range(n_neighbours[p]):
+                    keep |= Bt[neighbours[p, c], k, w, i]
+                s = St[p, k, pw + w, px + i]
+                lost |= s & ~keep
+                St[p, k, pw + w, px + i] = s & keep
+            if lost != _ZERO:
+                n_changed += 1
+                first = min(first, i)
+                last = i
+        ch[p, k, 0] = first
+        ch[p, k, 1] = last
+    return n_changed
+
+
+@njit
+def safety_iterate_serial(
+    St: U64Array,
+    At: U64Array,
+    Bt: U64Array,
+    band_a: I32Array,
+    band_b: I32Array,
+    ch: I32Array,
+    succ: I32Array,
+    heading: I32Array,
+    neighbours: I32Array,
+    n_neighbours: I32Array,
+    pads: I32Array,
+    max_iterations: int,
+) -> int:
+    """Iterate to the greatest fixed point on the calling thread; return the iterations.
+
+    -1 when `max_iterations` passed without reaching it (St then still holds S, and more).
+    """
+    m = St.shape[0]
+    npsi = St.shape[1]
+    px, pw = pads[0], pads[2]
+    for it in range(max_iterations):
+        for u in range(m):
+            _test_input(u, St, At, Bt, band_a, band_b, ch, succ, heading, px, pw)
+        n = 0
+        for k in range(npsi):
+            n += _update_heading(
+                k, St, At, Bt, band_a, band_b, ch, neighbours, n_neighbours, px, pw
+            )
+        if n == 0:
+            return it + 1
+    return -1
+
+
+@njit_parallel
+def safety_iterate_parallel(
+    St: U64Array,
+    At: U64Array,
+    Bt: U64Array,
+    band_a: I32Array,
+    band_b: I32Array,
+    ch: I32Array,
+    succ: I32Array,
+    heading: I32Array,
+    neighbours: I32Array,
+    n_neighbours: I32Array,
+    pads: I32Array,
+    max_iterations: int,
+) -> int:
+    """:func:`safety_iterate_serial` with the inputs' tests and the headings' updates threaded."""
+    m = St.shape[0]
+    npsi = St.shape[1]
+    px, pw = pads[0], pads[2]
+    counts = np.zeros(npsi, dtype=np.int64)
+    for it in range(max_iterations):
+        for u in prange(m):
+            _test_input(u, St, At, Bt, band_a, band_b, ch, succ, heading, px, pw)
+        for k in prange(npsi):
+            counts[k] = _update_heading(
+                k, St, At, Bt, band_a, band_b, ch, neighbours, n_neighbours, px, pw
+            )
+        if counts.sum() == 0:
+            return it + 1
+    return -1

@@ -1,0 +1,105 @@
+"""The runtime waits on the safety controller where docking is lost, and docks on after.
+
+A scripted controller answers decisions 0-1 for docking, 2-4 with staying inputs only
+(docking not winning, the vessel can stay safe), then for docking again: the loop must
+fly the waiting choice among the staying inputs, say when docking was lost and when it
+is back, promise the staying decisions' ends in the safety set (their contracts), and
+not stop the vessel.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hil.adapters.sim import SimConfig, SimWorld
+from hil.controllers.symbolic import DecisionContract, wait_index
+from hil.core.samples import ObstacleLayout
+from hil.runtime.assembly import low_level_for
+from hil.runtime.events import EventCode
+from hil.runtime.loop import Runtime, World
+from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer
+from hil.runtime.settings import LoopConfig
+from hil.runtime.stack import DecisionQuery
+from hil.runtime.trace import MemoryLog
+from tests.runtime.test_low_level_pin import START, TrueVelocity
+
+F = NDArray[np.float64]
+
+INPUTS = np.array([[0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.05, 0.05, 0.0], [0.1, 0.0, 0.1]])
+STAYING = (2, 4)  # decisions [2, 4) wait
+
+
+class WaitingController:
+    """Docking, then a wait (staying inputs 1 and 2 only), then docking again."""
+
+    def __init__(self) -> None:
+        self.decisions = 0
+        self.contracts: list[bool] = []
+
+    @property
+    def inputs(self) -> F:
+        return INPUTS
+
+    def locate(self, state: F) -> int:
+        return 0
+
+    def nearest_input(self, velocity: F) -> int:
+        return 0
+
+    def value(self, state: F, reference: int, first: bool) -> float:
+        return 3.0
+
+    def safe_input_indices(self, state: F, reference: int, first: bool) -> NDArray[np.int64]:
+        return np.array([3], dtype=np.int64)
+
+    def query(self, state: F, reference: int, first: bool) -> DecisionQuery:
+        n = self.decisions
+        self.decisions += 1
+        if STAYING[0] <= n < STAYING[1]:
+            return DecisionQuery(0, math.inf, np.array([1, 2], dtype=np.int64), staying=True)
+        return DecisionQuery(0, 3.0, np.array([3], dtype=np.int64))
+
+    def contract(
+        self, state: F, chosen: int, reference: int, first: bool, staying: bool = False
+    ) -> DecisionContract | None:
+        self.contracts.append(staying)
+        return None
+
+
+def test_a_lost_docking_is_waited_out_on_the_staying_inputs() -> None:
+    n_decisions = 6
+    world = SimWorld(SimConfig(start=START, seed=3), max_duration_s=2.0 * n_decisions + 5.0)
+    controller = WaitingController()
+
+    def solve(layout: ObstacleLayout, report_age_s: float) -> WaitingController:
+        return controller
+
+    loop = LoopConfig(
+        resynthesis_period_s=None, max_duration_s=2.0 * n_decisions - 0.025,
+        observer_settle_s=0.0,
+    )  # fmt: skip
+    log = MemoryLog()
+    runtime = Runtime(
+        World(world.clock, world.pose, world.imu, world.obstacles, world.thrusters),
+        TrueVelocity(world), low_level_for(loop.loop_hz),
+        Resynthesizer(solve, ResynthesisMode.INLINE), lambda safe, previous, state: 0, log, loop,
+    )  # fmt: skip
+    stats = runtime.run()
+
+    assert stats.decisions == n_decisions
+    assert stats.staying_decisions == STAYING[1] - STAYING[0]
+    assert stats.docking_lost == 1
+    assert stats.not_winning_decisions == 0
+    assert not stats.aborted
+    codes = log.event_codes()
+    assert codes.count(EventCode.DOCKING_LOST.value) == 1
+    assert codes.count(EventCode.DOCKING_BACK.value) == 1
+    assert codes.index(EventCode.DOCKING_LOST.value) < codes.index(EventCode.DOCKING_BACK.value)
+    chosen = [d.chosen_index for d in log.decisions]
+    waiting = int([1, 2][wait_index(INPUTS[[1, 2]])])
+    assert chosen == [3, 3, waiting, waiting, 3, 3]
+    assert [d.staying for d in log.decisions] == [False, False, True, True, False, False]
+    assert controller.contracts == [False, False, True, True, False, False]
