@@ -16,6 +16,7 @@ from hil.core.samples import ObstacleLayout
 from hil.core.shapes import Rect
 from hil.runs.sim_run import scenario_hash, synthesizer_for
 from hil.runtime.assembly import LayoutSolver, SymbolicAdapter
+from hil.runtime.controller_lru import ControllerLru
 from hil.scenarios import Scenario, ScenarioError, load_scenario
 
 
@@ -25,6 +26,9 @@ class ScenarioMismatchError(ReplayError, ValueError):
 
 class ControllerCache:
     """One controller per distinct obstacle layout and report age, with the current code.
+
+    The controllers kept are bounded in bytes (:class:`ControllerLru`): a log with moving
+    obstacles has a layout per report, and a dropped one is read back from the store.
 
     Callable as a solver for :class:`hil.runtime.resynthesis.Resynthesizer`.
 
@@ -36,7 +40,8 @@ class ControllerCache:
     def __init__(self, scenario: Scenario, cache_dir: Path | None = None) -> None:
         self.scenario = scenario
         self._solver = LayoutSolver(scenario, synthesizer_for(scenario, cache_dir))
-        self._done: dict[tuple[tuple[Rect, ...], float], SymbolicAdapter | NoWinningSetError] = {}
+        self._done: ControllerLru[SymbolicAdapter | NoWinningSetError] = ControllerLru()
+        self._seen: set[tuple[tuple[Rect, ...], float]] = set()
         self.layouts = 0
 
     @property
@@ -59,12 +64,14 @@ class ControllerCache:
         key = (layout.obstacles, age)
         got = self._done.get(key)
         if got is None:
-            self.layouts += 1
+            if key not in self._seen:
+                self._seen.add(key)
+                self.layouts += 1
             try:
                 got = self._solver(layout, age)
             except NoWinningSetError as err:
                 got = err
-            self._done[key] = got
+            self._done.put(key, got, None if isinstance(got, NoWinningSetError) else got.controller)
         if isinstance(got, NoWinningSetError):
             raise got
         return got

@@ -12,7 +12,7 @@ from __future__ import annotations
 import json
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import nullcontext
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -40,6 +40,7 @@ from hil.runtime.assembly import (
     low_level_for,
     select_index,
 )
+from hil.runtime.controller_lru import ControllerLru
 from hil.runtime.loop import Runtime, World
 from hil.runtime.report_age import ReportAgeBudget
 from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer, Solve
@@ -138,14 +139,14 @@ def world_motions(scenario: Scenario, spec: SimRunSpec) -> tuple[ObstacleMotion,
 
 
 class RecordingSolver:
-    """A layout solver that keeps every controller it returned, by synthesis version.
+    """A layout solver that remembers which controller each synthesis version returned.
 
     The resynthesizer numbers its syntheses 1, 2, ... in call order, failures included;
     this counts the same way. Every call synthesizes (a re-synthesis timer must cost what
-    it costs on the vessel); every version of one layout then keeps the first controller
-    object for it, so memory grows with the distinct layouts, not with the versions (an
-    obstacle going back and forth revisits a few layouts in hundreds of versions, and each
-    paper-grid controller read back from the store is a new object of about 150 MB).
+    it costs on the vessel). :attr:`controllers` gives each version's controller: a few
+    are kept in memory (:class:`ControllerLru`; a paper-grid controller holds about 300
+    MB and a moving obstacle brings a new layout every report), the others solved again
+    on demand, a read from the solved-controller store.
 
     Args:
         solver: The solver to wrap.
@@ -154,16 +155,53 @@ class RecordingSolver:
     def __init__(self, solver: LayoutSolver) -> None:
         self._solver = solver
         self._calls = 0
-        self._by_layout: dict[tuple[object, ...], SymbolicAdapter] = {}
-        self.controllers: dict[int, Controller] = {}
+        self._kept: ControllerLru[SymbolicAdapter] = ControllerLru()
+        self._asked: dict[int, tuple[ObstacleLayout, float]] = {}
+        self.controllers = VersionControllers(self)
 
     def __call__(self, layout: ObstacleLayout, report_age_s: float) -> SymbolicAdapter:
-        """Solve `layout` for `report_age_s` and remember the controller under its version."""
+        """Solve `layout` for `report_age_s` and remember it under its version."""
         self._calls += 1
         solved = self._solver(layout, report_age_s)
-        adapter = self._by_layout.setdefault((layout.obstacles, report_age_s), solved)
-        self.controllers[self._calls] = adapter.controller
-        return adapter
+        self._asked[self._calls] = (layout, report_age_s)
+        key = (layout.obstacles, report_age_s)
+        if self._kept.get(key) is None:
+            self._kept.put(key, solved, solved.controller)
+        return solved
+
+    def versions(self) -> list[int]:
+        """Return the synthesis versions that returned a controller, in order."""
+        return sorted(self._asked)
+
+    def controller_of(self, version: int) -> Controller:
+        """Return the controller of synthesis `version` (solved again if not kept).
+
+        Raises:
+            KeyError: No synthesis of that version returned a controller.
+        """
+        layout, age = self._asked[version]
+        key = (layout.obstacles, age)
+        adapter = self._kept.get(key)
+        if adapter is None:
+            adapter = self._solver(layout, age)
+            self._kept.put(key, adapter, adapter.controller)
+        return adapter.controller
+
+
+class VersionControllers(Mapping[int, Controller]):
+    """The controllers of a run by synthesis version, read through a :class:`RecordingSolver`."""
+
+    def __init__(self, solver: RecordingSolver) -> None:
+        self._solver = solver
+
+    def __getitem__(self, version: int) -> Controller:
+        return self._solver.controller_of(version)
+
+    def __iter__(self) -> Iterator[int]:
+        return iter(self._solver.versions())
+
+    def __len__(self) -> int:
+        return len(self._solver.versions())
 
 
 def build_runtime(
@@ -294,7 +332,7 @@ class SimOutcome:
     scenario: Scenario
     sim: SimWorld
     stats: RunStats
-    controllers: dict[int, Controller]
+    controllers: Mapping[int, Controller]
 
 
 def run_in_sim(

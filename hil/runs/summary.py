@@ -106,6 +106,8 @@ class RunSummary:
             (abort, operator, timeout) before the thrust was cut (s); None: no braking.
         late_intervals: Decisions later than tau + late after the previous one (a
             stalled loop: a broken premise, ``late_interval``); worst_late_s by how much (s).
+        staying_decisions: Decisions taken on the safety controller (docking not
+            winning, the vessel kept in the safety set); docking_lost the episodes.
     """
 
     scenario: str
@@ -142,6 +144,8 @@ class RunSummary:
     late_intervals: int = 0
     worst_late_s: float = 0.0
     brake_s: float | None = None
+    staying_decisions: int = 0
+    docking_lost: int = 0
 
     def to_json(self) -> str:
         """Return the summary as one line of JSON (NaN and inf as null)."""
@@ -203,6 +207,12 @@ class RunSummary:
         ):
             table.add_row(f"tracking RMS / max, {label}", f"{rms:.5f} / {peak:.4f}", f"{paper}")
         table.add_row("decisions outside winning set", str(self.not_winning_decisions), "-")
+        if self.staying_decisions:
+            table.add_row(
+                "waited on the safety controller (docking lost)",
+                f"{self.staying_decisions} decisions, {self.docking_lost} episode(s)",
+                "-",
+            )
         table.add_row(
             "monitor: tube exits / successor misses / value not decreasing",
             f"{self.tube_exits} ({self.worst_tube_exit_m:.3f} m) / {self.successor_misses} "
@@ -299,6 +309,8 @@ def summarize_run(
         late_intervals=stats.late_intervals,
         worst_late_s=stats.worst_late_s,
         brake_s=stats.brake_s,
+        staying_decisions=stats.staying_decisions,
+        docking_lost=stats.docking_lost,
     )
 
 

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from hil.bag.run_data import load_run
+from hil.controllers.symbolic import wait_index
 from hil.core.records import Decision
 from hil.replay.controllers import ScenarioCache
 from hil.replay.decisions import (
@@ -51,6 +52,35 @@ def test_recompute_mirrors_the_runtime_decision(caches: ScenarioCache) -> None:
     assert inside.chosen == -1
 
 
+def test_recompute_waits_where_docking_is_lost_but_the_state_is_safe(
+    caches: ScenarioCache,
+) -> None:
+    scenario = load_scenario("coarse")
+    adapter = caches.get(scenario)(layout_from_scenario(scenario))
+    c = adapter.controller
+    rest = c.rest_index
+    g = c.grid
+    cells = np.argwhere(c.values < 0)  # (i, j, k) not winning from rest
+    safe = c.safe_at(rest, cells[:, 0], cells[:, 1], cells[:, 2])
+    assert safe.any(), "the coarse layout has safe states that cannot dock"
+    i, j, k = (int(v) for v in cells[np.flatnonzero(safe)[0]])
+    state = np.array([g.x_min_m + (i + 0.5) * g.cell_x_m, g.y_min_m + (j + 0.5) * g.cell_y_m,
+                      -np.pi + (k + 0.5) * 2 * np.pi / g.npsi])  # fmt: skip
+    assert g.cell_of(state) == (i, j, k)
+    got = recompute(adapter, state, np.array([0.1, 0.0, 0.0]), rest, False)
+    assert got.staying
+    assert not got.winning
+    listed = np.array(got.safe)
+    np.testing.assert_array_equal(listed, np.sort(c.staying_input_indices_at((i, j, k), rest)))
+    assert got.chosen == int(listed[wait_index(c.inputs[listed])])
+    recorded = Decision.from_arrays(
+        1_000_000_000, state, adapter.locate(state), got.value, False, c.inputs[listed],
+        listed, got.chosen, 1, "h", reference_index=rest,
+    )  # fmt: skip
+    assert recorded.staying
+    assert consistency(recorded, c.inputs) == []
+
+
 INPUTS = np.array([[0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.2, 0.0, 0.0], [0.1, 0.05, 0.0]])
 
 
@@ -91,6 +121,12 @@ def test_a_consistent_decision_has_no_problem() -> None:
         ({"winning": False}, "winning", "winning: recorded False but value 4.0"),
         ({"chosen_index": -1}, "chosen_index", "-1 (none) although 2 safe inputs"),
         ({"value": 0.0}, "safe_input_indices", "recorded at value 0.0"),
+        (
+            {"value": float("inf"), "winning": False, "chosen_index": -1,
+             "chosen_input": (0.0, 0.0, 0.0)},
+            "safe_input_indices",
+            "recorded at value inf",
+        ),  # outside the winning set, inputs are listed only to wait on one of them
     ],
 )
 def test_every_field_is_checked_against_the_others(

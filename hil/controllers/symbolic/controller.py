@@ -210,6 +210,14 @@ class Controller:
         return self._obstacles
 
     @property
+    def nbytes(self) -> int:
+        """Return the bytes of the controller's own arrays (bits, planes, viable, safe)."""
+        arrays = [self._W, self._planes, self._viable]
+        if self._safe is not None:
+            arrays.append(self._safe)
+        return sum(int(a.nbytes) for a in arrays)
+
+    @property
     def safe_words(self) -> U64Array | None:
         """Return the safety set's bits (winning bits' layout), None if not solved."""
         return self._safe

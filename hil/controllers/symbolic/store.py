@@ -88,7 +88,7 @@ _STALE_TMP_S = 3600.0  # a temporary file this old is a writer's that died
 # abstraction; the masks are hashed into the key).
 _SOLVER_SOURCES = (
     "synthesis.py", "sweep.py", "planes_kernel.py", "levels.py", "kernels.py", "lattice.py",
-    "store.py",
+    "safety.py", "safety_kernel.py", "store.py",
 )
 
 
