@@ -19,9 +19,13 @@ class (hold, change, start) and 0.25-s bin, how far the true position and headin
 from the exact arc of the command started at the true pose, up to each bin's end, over
 periods of tau to tau + 0.1 s (a command held late), measured on references that move at
 most one grid step per axis and period (Euler tours of every (p, u) pair, walks, ramps,
-starts from rest and already moving), x1.25 + 0.002 m / 0.002 rad and rounded up; beside
-it the velocity error per bin and axis and the EKF's error, with the largest deviation
-per class against the budget (the margin it leaves).
+starts from rest and already moving, and the systematic family: every one-step ramp of 1-4
+steps into every input with 4 holds after it), x1.25 + 0.002 m / 0.002 rad and rounded up;
+beside it the velocity error per bin and axis and the EKF's error, with the largest
+deviation per class against the budget (the margin it leaves), the family's own worst
+deviation with the factor the budget keeps over it (>= 1 in every class and bin), and
+the hold periods by how many holds in a row they are (a hold settles within two
+periods of a change, which is why the family holds 4).
 
 Speed: a 3-minute run (100 Hz physics, sensors + EKF + PID + allocation + vessel) in
 the compiled loop, against the same loop run by the Python interpreter
@@ -46,7 +50,7 @@ from numpy.typing import NDArray
 
 from hil.controllers.allocation_kernels import extended_matrix, force_limits
 from hil.controllers.low_level import AllocatorKind
-from hil.core.transient import LATE_S
+from hil.core.transient import LATE_S, BudgetClass
 from hil.model.coefficients import VesselParams
 from hil.model.dynamics import hydro_force
 from hil.model.environment import EnvironmentalLoad
@@ -368,6 +372,29 @@ def main(argv: list[str] | None = None) -> int:
             f"{ratios.heading_rad[cls]:.4f} rad of {budget.heading_rad[cls, -1]:.4f} "
             f"(ratio {ratios.heading[cls]:.3f})"
         )
+    fam = measured.family_periods
+    print(
+        f"  the systematic family ({fam[0]} hold, {fam[1]} change periods: every one-step "
+        f"ramp of 1-{recipe_t.ramp_steps} steps into every input, {recipe_t.ramp_holds} "
+        "holds after),\n  its worst deviation and the factor the budget keeps over it "
+        "(budget / measured, >= 1 required):"
+    )
+    print(f"  {'family (s)':<22}{bin_header}")
+    f_position, f_heading = derivation.family_factors()
+    for cls in (BudgetClass.HOLD, BudgetClass.CHANGE):
+        cls_name = CLASS_NAMES[cls]
+        for label, row in (
+            ("position m", measured.family_position_m[cls]),
+            ("position factor", f_position[cls]),
+            ("heading rad", measured.family_heading_rad[cls]),
+            ("heading factor", f_heading[cls]),
+        ):
+            print(f"  {cls_name + ' ' + label:<22}" + "".join(f"{v:>10.4f}" for v in row))
+    print("  hold periods by holds in a row since the last change (position m; settled by 2):")
+    streaks = measured.hold_streak_position_m
+    for h in range(streaks.shape[0]):
+        label = f"hold {h + 1}{'+' if h == streaks.shape[0] - 1 else ''}"
+        print(f"  {label:<22}" + "".join(f"{v:>10.4f}" for v in streaks[h]))
     print(
         f"\nscenario transient budget this measures (deviations x{recipe_t.safety_factor:g} + "
         f"{recipe_t.position_margin_m:g} m / {recipe_t.heading_margin_rad:g} rad, the rest "
@@ -426,6 +453,11 @@ def main(argv: list[str] | None = None) -> int:
                         "estimation": measured.estimation.tolist(),
                         "periods": measured.periods.tolist(),
                         "worst_ratio": ratios.worst,
+                        "family_position_m": measured.family_position_m.tolist(),
+                        "family_heading_rad": measured.family_heading_rad.tolist(),
+                        "family_factor_position": f_position.tolist(),
+                        "family_factor_heading": f_heading.tolist(),
+                        "hold_streak_position_m": streaks.tolist(),
                         "seconds": derivation.seconds,
                     },
                     "loop_s": best,

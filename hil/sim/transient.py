@@ -29,6 +29,15 @@ The references (:class:`TransientRecipe`):
   a uniformly chosen other neighbour;
 - *sweeps*, from rest: for each of the 26 directions a ramp of changes along it from
   one side of the grid to the other, then holds (the low level lags a ramp most);
+- *ramps*, the systematic family (one run per target input u, from rest): for every
+  one-step direction d into u (u - d on the grid) and every ramp length k of 1 to
+  ``ramp_steps`` (u - k d on the grid), a one-step path to u - k d, ``RAMP_SETTLE`` holds
+  there, k changes along d into u, then ``ramp_holds`` holds of u. Every corner, edge,
+  face and interior input of the lattice is a target (``ramp_targets = "all"``; "edges"
+  keeps the inputs with at least two axes at the box's bounds, where the thrusters
+  saturate). Holds converge within two periods of the last change (measured per
+  consecutive hold: :attr:`Measured.hold_streak_position_m`), so ``ramp_holds`` = 4
+  reaches the steady hold and longer ramps add nothing after 3-4 steps;
 - *starts* (class start), for every pair (p*, u in N(p*)): the true velocity drawn
   uniformly within half a grid step of p* per axis (clipped to the input box),
   thrusters idle, a random heading, the EKF from the true state as configured, the
@@ -44,6 +53,12 @@ class, bin and axis, both bin edges) and the estimation bounds (the largest EKF
 position and heading errors of every run after its first ``estimation_after_s``) are
 scaled by ``safety_factor`` and rounded alike. :func:`check_bound` flies a recipe on
 other seeds and compares what it measures with a budget.
+
+The family's own maxima per class and bin (:attr:`Measured.family_position_m`,
+:attr:`Measured.family_heading_rad`) are kept beside the overall ones, and
+:meth:`TransientDerivation.family_factors` gives the factor the budget keeps over them
+(>= 1 everywhere, by construction for the derivation's seeds; a test flies the family on
+other seeds and fails on any factor < 1).
 
 ``python -m bench lowlevel`` prints the table; tests/sim/test_transient_derivation.py checks that
 the packaged scenarios ship it and that fresh runs stay inside it.
@@ -79,6 +94,7 @@ IntArray = NDArray[np.int64]
 __all__ = [
     "CLASS_NAMES",
     "DIGITS",
+    "RAMP_SETTLE",
     "BoundRatios",
     "Measured",
     "Run",
@@ -89,9 +105,11 @@ __all__ = [
     "derive_transient",
     "euler_tour",
     "fly",
+    "hold_streaks",
     "input_grid",
     "measure",
     "period_steps",
+    "ramp_family",
     "recipe_runs",
     "round_up",
     "toml_table",
@@ -110,16 +128,23 @@ _DIRECTIONS = np.array(
 )  # (26, 3): the non-zero one-step moves
 _MOVES = np.array(list(itertools.product((-1, 0, 1), repeat=3)), dtype=np.int64)  # (27, 3)
 
+RAMP_SETTLE = 2
+"""Holds at a ramp's first input before it starts (the path there is itself a ramp)."""
+
 
 @dataclass(frozen=True, slots=True)
 class TransientRecipe:
-    """How the transient budget is measured (the default: ~25 s on one core, 45,000 s flown).
+    """How the transient budget is measured (the default: ~100 s on one core, 186,000 s flown).
 
     Attributes:
         tours: Randomized Euler tours over every (p, u in N(p)) pair, one run each.
         walks: Long random walks from rest, one run each.
         walk_s: Length of each walk (s).
         sweeps: Whether to fly the 26 ramps (one run).
+        ramps: Passes over the systematic family (0: none), one run per target each.
+        ramp_steps: Longest ramp of the family (changes along one direction).
+        ramp_holds: Holds of the target after each ramp of the family.
+        ramp_targets: ``all`` inputs or only the lattice's ``edges`` (and corners).
         starts: Passes over every (p*, u in N(p*)) pair starting moving, one run each;
             each pass also starts once from rest to every u in N(p*), p* the input
             nearest zero.
@@ -146,6 +171,10 @@ class TransientRecipe:
     walks: int = 4
     walk_s: float = 180.0
     sweeps: bool = True
+    ramps: int = 1
+    ramp_steps: int = 4
+    ramp_holds: int = 4
+    ramp_targets: str = "all"
     starts: int = 1
     start_corners: bool = True
     start_share: float = 1.0
@@ -170,11 +199,30 @@ class TransientRecipe:
             f"rounded up to 1e-{DIGITS}; periods of tau to tau + {LATE_S:g} s (uniform, "
             f"whole physics steps); {self.tours} Euler tours of all (p, u in N(p)) pairs, "
             f"{self.walks} walks x {self.walk_s:g} s, {'26 ramps, ' if self.sweeps else ''}"
+            f"{self._family()}"
             f"starts from {self.starts}"
             f"{' + 1 (farthest corner)' if self.start_corners else ''} x {share} pairs "
             f"and from rest, {self.start_periods} periods each; seed {self.seed}; the "
             "runtime's low level on the simulated plant, sensors and EKF"
         )
+
+    def _family(self) -> str:
+        if self.ramps <= 0:
+            return ""
+        return (
+            f"{self.ramps} x the family (every one-step direction into {self.ramp_targets} "
+            f"inputs, ramps of 1-{self.ramp_steps} steps, {self.ramp_holds} holds after), "
+        )
+
+    def __post_init__(self) -> None:
+        if self.ramp_targets not in ("all", "edges"):
+            raise ClosedLoopConfigError(
+                f"ramp_targets must be 'all' or 'edges', got {self.ramp_targets!r}"
+            )
+        if self.ramp_steps < 1 or self.ramp_holds < 1:
+            raise ClosedLoopConfigError(
+                f"ramp_steps and ramp_holds must be >= 1, got {self.ramp_steps}, {self.ramp_holds}"
+            )
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -182,7 +230,8 @@ class Run:
     """One closed-loop run of the recipe: its references, period lengths and start.
 
     Attributes:
-        kind: ``tour``, ``walk``, ``sweeps``, ``start`` (moving), ``corner`` or ``rest``.
+        kind: ``tour``, ``walk``, ``sweeps``, ``ramps`` (the systematic family), ``start``
+            (moving), ``corner`` or ``rest``.
         refs: References, shape (N, 3) (m/s, m/s, rad/s), one per period.
         steps: Length of each period in physics steps, shape (N,).
         previous: p*, the input the run starts near, shape (3,): the input nearest zero
@@ -223,6 +272,14 @@ class Measured:
         periods: Periods per class, shape (3,).
         samples: Physics samples per class, shape (3,).
         simulated_s: Simulated time (s).
+        family_position_m: Max |p - pbar| over the systematic family's periods alone,
+            shape (3, n_bins) (m); zero where the recipe flies no family.
+        family_heading_rad: Max |psi - psibar| likewise, shape (3, n_bins) (rad).
+        family_periods: The family's periods per class, shape (3,).
+        hold_streak_position_m: Max |p - pbar| of hold periods by how many holds in a
+            row they are (row h: the (h + 1)-th hold since the last change or start; the
+            last row: that many or more), shape (ramp_holds, n_bins) (m): how fast a hold
+            after changes settles to the steady hold.
     """
 
     envelopes: FloatArray
@@ -232,6 +289,10 @@ class Measured:
     periods: IntArray
     samples: IntArray
     simulated_s: float
+    family_position_m: FloatArray
+    family_heading_rad: FloatArray
+    family_periods: IntArray
+    hold_streak_position_m: FloatArray
 
 
 @dataclass(frozen=True, slots=True)
@@ -273,6 +334,25 @@ class TransientDerivation:
     measured: Measured
     ratios: BoundRatios
     seconds: float
+
+    def family_factors(self) -> tuple[FloatArray, FloatArray]:
+        """Return the factor the budget keeps over the systematic family, per class and bin.
+
+        Returns:
+            (position, heading), each shape (3, n_bins): budget / the family's measured
+            maximum; inf where the family measured nothing (no period of that class, or
+            a deviation of 0).
+        """
+        return (
+            _factors(self.budget.position_m, self.measured.family_position_m),
+            _factors(self.budget.heading_rad, self.measured.family_heading_rad),
+        )
+
+
+def _factors(bound: FloatArray, measured: FloatArray) -> FloatArray:
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out: FloatArray = np.where(measured > 0.0, bound / measured, np.inf)
+    return out
 
 
 def input_grid(scenario: Scenario) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -412,6 +492,37 @@ def _sweeps(g: _Grid) -> list[IntArray]:
     return out
 
 
+def ramp_family(g: _Grid, max_steps: int, holds: int, targets: str = "all") -> list[list[IntArray]]:
+    """Return the systematic family's reference indices, one list per target input.
+
+    For each target u (every input, or with ``targets="edges"`` those with at least two
+    axes at the grid's bounds), from the input nearest zero: for every direction d of
+    the 26 with u - d on the grid and every k in 1..`max_steps` with u - k d on the
+    grid, a one-step path to u - k d, :data:`RAMP_SETTLE` holds there, the k changes
+    into u and `holds` holds of u.
+    """
+    out: list[list[IntArray]] = []
+    for u in g.inputs():
+        at_bound = int(np.sum((u == 0) | (u == g.top)))
+        if targets == "edges" and at_bound < 2:
+            continue
+        idx = g.zero.copy()
+        seq: list[IntArray] = []
+        for d in _DIRECTIONS:
+            for k in range(1, max_steps + 1):
+                first = u - k * d
+                if np.any(first < 0) or np.any(first > g.top):
+                    break
+                seq += g.path(idx, first)
+                seq += [first] * RAMP_SETTLE
+                seq += [u - (k - j) * d for j in range(1, k + 1)]
+                seq += [u] * holds
+                idx = u
+        if seq:
+            out.append(seq)
+    return out
+
+
 def period_steps(scenario: Scenario, dt_s: float) -> tuple[int, int]:
     """Return the fewest and most physics steps of a period: tau and tau + LATE_S.
 
@@ -459,6 +570,9 @@ def recipe_runs(scenario: Scenario, recipe: TransientRecipe, dt_s: float = 0.01)
         add("walk", np.array([g.value(i) for i in g.walk(g.zero, n_walk, rng)]), rest, zeros, 0.0)
     if recipe.sweeps:
         add("sweeps", np.array([g.value(i) for i in _sweeps(g)]), rest, zeros, 0.0)
+    for _ in range(recipe.ramps):
+        for seq in ramp_family(g, recipe.ramp_steps, recipe.ramp_holds, recipe.ramp_targets):
+            add("ramps", np.array([g.value(i) for i in seq]), rest, zeros, 0.0)
     pairs = [(p, u) for p in g.inputs() for u in g.neighbours(p)]
     n_pairs = round(recipe.start_share * len(pairs))
 
@@ -501,6 +615,20 @@ def classify(run: Run) -> IntArray:
     same = np.all(run.refs[1:] == prev, axis=1)
     out[1:] = np.where(same, BudgetClass.HOLD, BudgetClass.CHANGE)
     out[:START_PERIODS] = BudgetClass.START
+    return out
+
+
+def hold_streaks(run: Run) -> IntArray:
+    """Return, per period of `run`, how many holds in a row end at it, shape (N,).
+
+    0 for a change or a start period; 1 for the first hold after a change (or after
+    the start), 2 for the second, and so on.
+    """
+    classes = classify(run)
+    out = np.zeros(classes.shape[0], dtype=np.int64)
+    for n in range(classes.shape[0]):
+        if classes[n] == BudgetClass.HOLD:
+            out[n] = (out[n - 1] if n else 0) + 1
     return out
 
 
@@ -607,8 +735,12 @@ def measure(
     env = np.zeros((N_CLASSES, n_bins, 3))
     position = np.zeros((N_CLASSES, n_bins))
     heading = np.zeros((N_CLASSES, n_bins))
+    family_position = np.zeros((N_CLASSES, n_bins))
+    family_heading = np.zeros((N_CLASSES, n_bins))
+    streaks = np.zeros((recipe.ramp_holds, n_bins))
     est = np.zeros(2)
     counts = np.zeros(N_CLASSES, dtype=np.int64)
+    family_counts = np.zeros(N_CLASSES, dtype=np.int64)
     samples = np.zeros(N_CLASSES, dtype=np.int64)
     simulated = 0.0
     for run in recipe_runs(scenario, recipe, cfg.dt_s):
@@ -616,6 +748,11 @@ def measure(
         p = _periods(run, res, cfg.dt_s, width, n_bins, recipe.estimation_after_s)
         simulated += float(run.steps.sum()) * cfg.dt_s
         est = np.maximum(est, p.estimation)
+        streak = np.minimum(hold_streaks(run), recipe.ramp_holds)
+        for h in range(1, recipe.ramp_holds + 1):
+            rows = streak == h
+            if np.any(rows):
+                streaks[h - 1] = np.maximum(streaks[h - 1], p.position[rows].max(axis=0))
         for cls in range(N_CLASSES):
             rows = p.classes == cls
             if not np.any(rows):
@@ -625,7 +762,25 @@ def measure(
             env[cls] = np.maximum(env[cls], p.envelopes[rows].max(axis=0))
             position[cls] = np.maximum(position[cls], p.position[rows].max(axis=0))
             heading[cls] = np.maximum(heading[cls], p.heading[rows].max(axis=0))
-    return Measured(env, position, heading, est, counts, samples, simulated)
+            if run.kind == "ramps":
+                family_counts[cls] += int(rows.sum())
+                family_position[cls] = np.maximum(
+                    family_position[cls], p.position[rows].max(axis=0)
+                )
+                family_heading[cls] = np.maximum(family_heading[cls], p.heading[rows].max(axis=0))
+    return Measured(
+        env,
+        position,
+        heading,
+        est,
+        counts,
+        samples,
+        simulated,
+        family_position,
+        family_heading,
+        family_counts,
+        streaks,
+    )
 
 
 def _ratios(budget: TransientBudget, measured: Measured) -> BoundRatios:

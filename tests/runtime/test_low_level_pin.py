@@ -16,65 +16,22 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hil.adapters.sim import SimConfig, SimWorld
-from hil.controllers.symbolic import DecisionContract
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample
 from hil.runtime.assembly import low_level_for
 from hil.runtime.loop import Runtime, World
 from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer
 from hil.runtime.settings import LoopConfig
-from hil.runtime.stack import DecisionQuery
 from hil.runtime.trace import MemoryLog
 from hil.sim.closed_loop import LowLevelConfig, simulate_closed_loop
 from hil.sim.plant import P_NU
+from tests.runtime.scripted import ScriptedController
 
 F = NDArray[np.float64]
-I64 = NDArray[np.int64]
 
 REFS = np.array(
     [[0.1, 0.0, 0.0], [0.15, 0.05, 0.1], [0.2, -0.1, -0.2], [0.0, 0.1, 0.2], [-0.1, 0.0, 0.0]]
 )
 START = (2.0, 1.0, 0.5)
-
-
-class ScriptedController:
-    """A symbolic controller whose only safe input at decision i is reference row i."""
-
-    def __init__(self, refs: F) -> None:
-        self._refs = refs
-        self.decisions = 0
-
-    @property
-    def inputs(self) -> F:
-        """The input grid: the reference rows, shape (n, 3)."""
-        return self._refs
-
-    def locate(self, state: F) -> int:
-        """Every state is in cell 0."""
-        return 0
-
-    def nearest_input(self, velocity: F) -> int:
-        """The run starts at rest on row 0's side of the script."""
-        return 0
-
-    def value(self, state: F, reference: int, first: bool) -> float:
-        """One step from the target everywhere, so the loop keeps running."""
-        return 1.0
-
-    def safe_input_indices(self, state: F, reference: int, first: bool) -> I64:
-        """Return the next row of the script."""
-        i = self.decisions
-        self.decisions += 1
-        return np.array([i], dtype=np.int64)
-
-    def query(self, state: F, reference: int, first: bool) -> DecisionQuery:
-        """The next row of the script, one step from the target."""
-        return DecisionQuery(0, 1.0, self.safe_input_indices(state, reference, first))
-
-    def contract(
-        self, state: F, chosen: int, reference: int, first: bool, staying: bool = False
-    ) -> DecisionContract | None:
-        """Promise nothing: the runtime monitor judges no tick (no symbolic abstraction)."""
-        return None
 
 
 class TrueVelocity:
@@ -116,8 +73,12 @@ def run_runtime(refs: F) -> tuple[MemoryLog, SimWorld, ScriptedController]:
     log = MemoryLog()
     runtime = Runtime(
         World(world.clock, world.pose, world.imu, world.obstacles, world.thrusters),
-        TrueVelocity(world), low_level_for(loop.loop_hz),
-        Resynthesizer(solve, ResynthesisMode.INLINE), lambda safe, previous, state: 0, log, loop,
+        TrueVelocity(world),
+        low_level_for(loop.loop_hz),
+        Resynthesizer(solve, ResynthesisMode.INLINE),
+        lambda safe, previous, state: 0,
+        log,
+        loop,
     )
     runtime.run()
     return log, world, controller

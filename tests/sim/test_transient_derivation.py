@@ -26,11 +26,13 @@ from hil.sim.transient import (
     classify,
     derive_transient,
     euler_tour,
+    hold_streaks,
     measure,
     recipe_runs,
     round_up,
     toml_table,
 )
+from tests.runtime.scripted import exact_arc
 
 F = NDArray[np.float64]
 QUANTUM = 10.0**-DIGITS
@@ -48,7 +50,7 @@ def _grid_key(scenario: Scenario) -> tuple[object, ...]:
 @functools.cache
 def _derived(key: tuple[object, ...]) -> TransientDerivation:
     # The derivation sees only the input grid and the period: scenarios sharing them
-    # share one (the default recipe takes ~25 s on one core).
+    # share one (the default recipe takes ~100 s on one core).
     name = next(n for n in sorted(packaged_scenarios()) if _grid_key(load_scenario(n)) == key)
     return derive_transient(load_scenario(name), TransientRecipe())
 
@@ -89,7 +91,9 @@ def test_recipe_runs_obey_the_rule() -> None:
     recipe = TransientRecipe(tours=1, walks=2, walk_s=40.0)
     runs = recipe_runs(scenario, recipe)
     kinds = Counter(r.kind for r in runs)
-    assert kinds == {"tour": 1, "walk": 2, "sweeps": 1, "start": 3211, "rest": 27, "corner": 3211}
+    assert kinds == {
+        "tour": 1, "walk": 2, "sweeps": 1, "ramps": 175, "start": 3211, "rest": 27, "corner": 3211
+    }
     half = 0.5 * np.array([0.05, 0.05, 0.1]) + 1e-12
     lo = np.array([-0.1, -0.1, -0.2])
     hi = np.array([0.2, 0.1, 0.2])
@@ -127,6 +131,61 @@ def test_recipe_runs_obey_the_rule() -> None:
     assert not np.array_equal(runs[0].steps[:50], other[0].steps[:50])
 
 
+def _ramps_into(scenario: Scenario, runs: list[Run]) -> set[tuple[tuple[int, ...], ...]]:
+    """Return every (target, direction, length) a family run ramps along and then holds."""
+    seen: set[tuple[tuple[int, ...], ...]] = set()
+    for run in runs:
+        idx = _index(scenario, np.vstack([run.previous[None, :], run.refs]))
+        for n in range(2, idx.shape[0] - 4):
+            u = idx[n]
+            if np.any(idx[n + 1] != u) or np.all(idx[n - 1] == u):
+                continue  # not the last change before a hold
+            d = u - idx[n - 1]
+            k = 1
+            while n - k - 1 >= 0 and np.all(idx[n - k] - idx[n - k - 1] == d):
+                k += 1
+            if np.all(idx[n : n + 5] == u) and np.all(idx[n - k - 1] == idx[n - k]):
+                seen.add((tuple(u), tuple(d), (k,)))
+    return seen
+
+
+def test_the_family_ramps_into_every_input_from_every_direction_then_holds() -> None:
+    scenario = load_scenario("paper")
+    recipe = TransientRecipe(
+        tours=0, walks=0, sweeps=False, starts=0, start_corners=False, ramp_targets="all"
+    )
+    runs = recipe_runs(scenario, recipe)
+    assert {r.kind for r in runs} == {"ramps"}
+    seen = _ramps_into(scenario, runs)
+    top = np.array([6, 4, 4])
+    want = set()
+    for u in itertools.product(range(7), range(5), range(5)):
+        for d in itertools.product((-1, 0, 1), repeat=3):
+            if not any(d):
+                continue
+            for k in range(1, 5):
+                first = np.array(u) - k * np.array(d)
+                if np.any(first < 0) or np.any(first > top):
+                    break
+                want.add((u, d, (k,)))
+    # Every ramp of 1-4 steps along every direction into every input, settled before it
+    # and held 4 periods after (a longer ramp along d contains the shorter ones' tails).
+    assert want <= seen
+    assert len(want) == 6420
+    edges = recipe_runs(scenario, replace(recipe, ramp_targets="edges"))
+    targets = {tuple(_index(scenario, r.refs[-1:])[0]) for r in edges}
+    assert len(targets) == 52  # 8 corners and 44 edge inputs of the 7 x 5 x 5 lattice
+    assert all(sum(c in (0, t) for c, t in zip(u, top, strict=True)) >= 2 for u in targets)
+
+
+def test_hold_streaks_count_holds_in_a_row() -> None:
+    z = np.zeros(3)
+    a, b = np.array([0.05, 0.0, 0.0]), np.array([0.1, 0.0, 0.0])
+    refs = np.array([a, a, b, b, b, a, a])
+    run = Run("ramps", refs, np.full(7, 200, dtype=np.int64), z, z, z, 0)
+    assert hold_streaks(run).tolist() == [0, 0, 0, 1, 2, 0, 1]
+
+
 def test_periods_are_classified_by_the_previous_reference() -> None:
     refs = np.array([[0.0, 0.0, 0.0], [0.05, 0.0, 0.0], [0.05, 0.0, 0.0], [0.05, -0.05, 0.1]])
     z = np.zeros(3)
@@ -155,18 +214,6 @@ def test_the_toml_table_reads_back() -> None:
 # ---- the test's own arc and bookkeeping, independent of hil.sim.transient ----
 
 
-def _arc(start: F, u: F, t: F) -> tuple[F, F]:
-    """Return the exact arc of u from pose `start` at times t: positions (T, 2), headings (T,).
-
-    Complex form: pbar(t) = p0 + e^(i psi0) (u + i v) (e^(i r t) - 1) / (i r).
-    """
-    w = complex(u[0], u[1])
-    r = float(u[2])
-    z = w * t + 0j if abs(r) < 1e-12 else w * (np.exp(1j * r * t) - 1.0) / (1j * r)
-    z = complex(start[0], start[1]) + np.exp(1j * start[2]) * z
-    return np.stack([z.real, z.imag], axis=1), start[2] + r * t
-
-
 def _bin(t: F, bin_s: float, n_bins: int) -> NDArray[np.int64]:
     """Return the bin whose bound covers t: j with t in (j bin_s, (j + 1) bin_s]."""
     j = np.ceil(t / bin_s - 1e-9).astype(np.int64) - 1
@@ -186,7 +233,7 @@ def _deviations(run: Run) -> list[tuple[int, F, F, F]]:
         cls = 2 if n < 2 else (0 if np.array_equal(u, run.refs[n - 1]) else 1)
         last = min(begin + int(length), res.t_s.size - 1)  # the closing sample, if recorded
         t: F = np.arange(last + 1 - begin, dtype=np.float64) * DT
-        pbar, psibar = _arc(res.eta[begin], u, t)
+        pbar, psibar = exact_arc(res.eta[begin], u, t)
         pose = res.eta[begin : last + 1]
         dev_p: F = np.hypot(*(pose[:, :2] - pbar).T)
         dev_psi: F = np.abs(np.angle(np.exp(1j * (pose[:, 2] - psibar))))
@@ -212,7 +259,9 @@ def _judge(budget: TransientBudget, runs: list[Run]) -> tuple[F, F, F, F, NDArra
 
 def test_the_derivation_measures_what_an_independent_computation_does() -> None:
     scenario = load_scenario("paper")
-    recipe = TransientRecipe(tours=0, walks=1, walk_s=60.0, sweeps=False, start_share=0.01)
+    recipe = TransientRecipe(
+        tours=0, walks=1, walk_s=60.0, sweeps=False, ramps=0, start_share=0.01
+    )
     runs = recipe_runs(scenario, recipe)
     *_, worst_p, worst_h, periods = _judge(scenario.transient, runs)
     m = measure(scenario, recipe)
@@ -226,13 +275,42 @@ def test_fresh_runs_stay_inside_the_shipped_budget() -> None:
     scenario = load_scenario("paper")
     budget = scenario.transient
     # Other seeds than the derivation's: a new tour and walk, new starts, new period lengths.
-    recipe = TransientRecipe(tours=1, walks=1, sweeps=False, start_share=0.12, seed=9100)
+    recipe = TransientRecipe(
+        tours=1, walks=1, sweeps=False, ramps=0, start_share=0.12, seed=9100
+    )
     ratio_p, ratio_h, worst_p, worst_h, periods = _judge(budget, recipe_runs(scenario, recipe))
     assert np.all(periods > 500), periods
     assert np.all(ratio_p < 1.0), (ratio_p, worst_p)
     assert np.all(ratio_h < 1.0), (ratio_h, worst_h)
     assert np.all(ratio_p > 0.3)  # not vacuous
     assert np.all(ratio_h > 0.3)
+
+
+def test_a_fresh_family_stays_inside_the_shipped_budget() -> None:
+    # The systematic family (every one-step ramp of 1-4 steps into every corner and edge
+    # input of the lattice, 4 holds after) on other seeds than the derivation's: new
+    # period lengths, sensor noise. The factor the shipped table keeps over it must be
+    # >= 1 in every class and bin; the hold after a change into a corner is the history
+    # the second audit found over the old hold table (1.177x).
+    scenario = load_scenario("paper")
+    recipe = TransientRecipe(
+        tours=0, walks=0, sweeps=False, starts=0, start_corners=False,
+        ramp_targets="edges", seed=9200,
+    )
+    runs = recipe_runs(scenario, recipe)
+    ratio_p, ratio_h, worst_p, worst_h, periods = _judge(scenario.transient, runs)
+    hold, change = BudgetClass.HOLD, BudgetClass.CHANGE
+    assert periods[hold] > 5000, periods
+    assert periods[change] > 5000, periods
+    assert np.all(ratio_p < 1.0), (ratio_p, worst_p)
+    assert np.all(ratio_h < 1.0), (ratio_h, worst_h)
+    assert ratio_p[hold] > 0.6, ratio_p  # the family reaches the hold bound's scale
+    # The derivation's bookkeeping of the family agrees with this independent judge.
+    m = measure(scenario, recipe)
+    np.testing.assert_array_equal(m.family_periods, periods)
+    np.testing.assert_allclose(m.family_position_m.max(axis=1), worst_p, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(m.family_heading_rad.max(axis=1), worst_h, rtol=1e-9, atol=1e-12)
+    print(f"fresh family: worst/bound position {ratio_p}, heading {ratio_h}")
 
 
 @pytest.mark.parametrize("name", sorted(packaged_scenarios()))
@@ -256,7 +334,22 @@ def test_packaged_scenarios_ship_the_budget_the_low_level_achieves(name: str) ->
     # The measured maxima sit inside the budget by its factor and margin.
     assert derived.ratios.worst < 1.0 / 1.25 + 1e-9
     assert np.all(derived.measured.periods > 5000)
-    assert math.isclose(derived.measured.simulated_s, 58_500.0, rel_tol=0.05)
+    assert math.isclose(derived.measured.simulated_s, 186_300.0, rel_tol=0.05)
+    # The factor the table keeps over the systematic family, every class and bin.
+    position, heading = derived.family_factors()
+    assert np.all(position >= 1.25 - 1e-9), position
+    assert np.all(heading >= 1.25 - 1e-9), heading
+    assert np.all(derived.measured.family_periods[:2] > 20_000)
+
+
+def test_a_hold_settles_within_two_periods_of_a_change() -> None:
+    # Why the family holds 4 periods after each ramp and the hold class needs no history
+    # beyond that: the first hold after a change strays about twice as far as any later
+    # one, and the second, third and fourth agree (the low level has settled).
+    derived = _derived(_grid_key(load_scenario("paper")))
+    streak = derived.measured.hold_streak_position_m[:, -1]  # (4,): 1st, 2nd, 3rd, 4th+ hold
+    assert streak[0] > 1.5 * streak[1:].max(), streak
+    assert streak[1:].max() < 1.25 * streak[1:].min(), streak
 
 
 def test_the_estimation_bound_covers_what_the_runtime_decides_on() -> None:
