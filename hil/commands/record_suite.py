@@ -78,9 +78,9 @@ def suite() -> tuple[SuiteRun, ...]:
         ),
         SuiteRun(
             "coarse-high-seed2",
-            SimRunSpec("coarse", 2, (0.0, -1.0, math.radians(180.0)), loop=loop),
+            SimRunSpec("coarse", 2, (0.0, -1.2, math.radians(180.0)), loop=loop),
             "start on the right below O2's end, heading left (the arena above is too narrow "
-            "to turn in)",
+            "to turn in); its second decision ties in J (inputs 87 and 62)",
         ),
         SuiteRun(
             "coarse-moving-o2-seed3",
