@@ -48,7 +48,8 @@ def _specs(scenario_name: str, n: int, max_duration_s: float) -> list[SimRunSpec
     controller = LayoutSolver(scenario, synthesizer_for(scenario))(
         layout_from_scenario(scenario)).controller
     velocities = draw_velocities(scenario, n, 0.5, seed=0)
-    starts, _ = draw_starts(controller, n, 0, StartRegion.of(scenario), velocities)
+    starts, _ = draw_starts(controller, n, 0, StartRegion.of(scenario), velocities,
+                            scenario=scenario)
     base = SimRunSpec(scenario=scenario_name, loop=LoopConfig(
         resynthesis_period_s=None, max_duration_s=max_duration_s))
     return campaign_specs(base, starts, velocities=velocities)

@@ -92,7 +92,7 @@ def run(args: argparse.Namespace) -> int:
         velocities = draw_velocities(scenario, args.n, args.moving, args.seed)
         starts, discarded = draw_starts(
             controller, args.n, args.seed, StartRegion.of(scenario), velocities,
-            settle_s=first_decision_s(LoopConfig()),
+            settle_s=first_decision_s(LoopConfig()), scenario=scenario,
         )
     except (ScenarioError, SymbolicError, ValueError) as err:
         print(f"hil campaign: {err}", file=sys.stderr)

@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 from hil.adapters.sim import SimConfig, SimWorld
 from hil.controllers.symbolic import Controller
 from hil.core.codec import from_jsonable, to_jsonable
+from hil.runs.clearance import hull_margin_series
 from hil.runs.executor import Executor, LocalExecutor
 from hil.runs.fanout import Failure, Job, Report, fan_out
 from hil.runs.guarantee import GuaranteeViolations, judged_run
@@ -30,7 +31,7 @@ from hil.runs.summary import RunSummary
 from hil.runtime.assembly import low_level_for
 from hil.runtime.settings import NS_PER_S, LoopConfig
 from hil.scenarios import Scenario
-from hil.sim.plant import P_ETA, P_NU
+from hil.sim.plant import P_ETA, P_NU, TR_ETA
 
 FloatArray = NDArray[np.float64]
 
@@ -64,8 +65,14 @@ def draw_starts(controller: Controller, n: int, seed: int,
                 region: StartRegion | None = None,
                 velocities: Sequence[Velocity | None] | None = None,
                 settle_s: float = 0.0,
+                scenario: Scenario | None = None,
                 ) -> tuple[list[tuple[float, float, float]], int]:
     """Draw `n` start poses in the region that the controller calls winning.
+
+    With `scenario`, a start whose hull is not clear of the walls and the real
+    obstacles at every physics step until that first decision is discarded too: the
+    guarantee begins at the first decision, and a pose drawn 0.5 m from a wall may
+    already put a hull corner past it.
 
     Winning as the runtime's first decision sees it: some input is safe with the input
     nearest the vessel's velocity in force, every candidate budgeted as a first command
@@ -85,9 +92,11 @@ def draw_starts(controller: Controller, n: int, seed: int,
         pose = (float(rng.uniform(*region.x_m)), float(rng.uniform(*region.y_m)),
                 float(rng.uniform(-math.pi, math.pi)))
         velocity = None if velocities is None else velocities[len(starts)]
-        at, nu = first_decision_state(pose, velocity, settle_s)
+        path, nu = first_decision_path(pose, velocity, settle_s)
+        at = (float(path[-1, 0]), float(path[-1, 1]), float(path[-1, 2]))
         reference = None if nu is None else controller.lattice.nearest(np.array(nu))
-        if math.isfinite(controller.decision_value(at, reference, first=True)):
+        clear = scenario is None or bool(np.all(hull_margin_series(scenario, path) > 0.0))
+        if clear and math.isfinite(controller.decision_value(at, reference, first=True)):
             starts.append(pose)
         else:
             discarded += 1
@@ -117,8 +126,25 @@ def first_decision_state(
     against full runs: within 1 cm and 0.01 rad at 1.05 s, what the estimate's error
     makes of the braking); a start at rest stays put.
     """
+    path, nu = first_decision_path(pose, velocity, settle_s, loop_hz)
+    x, y, psi = (float(a) for a in path[-1])
+    return (x, y, psi), nu
+
+
+def first_decision_path(
+    pose: tuple[float, float, float], velocity: Velocity | None, settle_s: float,
+    loop_hz: float = 20.0,
+) -> tuple[FloatArray, Velocity | None]:
+    """Return the poses a run started there is predicted to pass until `settle_s`.
+
+    As :func:`first_decision_state` predicts them, at every physics step.
+
+    Returns:
+        The poses (x m, y m, psi rad), shape (N, 3), the start first and the pose at
+        `settle_s` last (one row for a start at rest), and the velocity then.
+    """
     if velocity is None or settle_s <= 0.0:
-        return pose, velocity
+        return np.array([pose], dtype=np.float64), velocity
     sim = SimWorld(SimConfig(start=pose, start_velocity=velocity), max_duration_s=settle_s + 1.0)
     low_level = low_level_for(loop_hz)
     period_ns = round(NS_PER_S / loop_hz)
@@ -130,9 +156,10 @@ def first_decision_state(
         sim.thrusters.send(low_level.step(np.zeros(3), nu, t_ns).command)
         t_ns += period_ns
     sim.clock.sleep_until(end_ns)
-    x, y, psi = (float(a) for a in sim.state[P_ETA : P_ETA + 3])
     u, v, r = (float(a) for a in sim.state[P_NU : P_NU + 3])
-    return (x, y, psi), (u, v, r)
+    path = np.vstack([np.array(pose, dtype=np.float64), sim.truth()[:, 1 + TR_ETA : 4 + TR_ETA],
+                      sim.state[P_ETA : P_ETA + 3]])
+    return path, (u, v, r)
 
 
 def first_decision_s(loop: LoopConfig) -> float:

@@ -93,3 +93,27 @@ def hull_clearance_series(scenario: Scenario, eta: FloatArray,
         hulls = hull_corners(scenario.hull.length_m, scenario.hull.beam_m, rel)
         out = np.minimum(out, distance_to_shape(hulls, obstacle.shape))
     return out
+
+
+def hull_margin_series(scenario: Scenario, eta: FloatArray) -> FloatArray:
+    """Return the hull's least clearance to the real obstacles and the walls (N, 3) -> (N,).
+
+    Args:
+        scenario: Real obstacles (where the scenario places them), the arena and the hull.
+        eta: Poses (x m, y m, psi rad), shape (N, 3).
+
+    Returns:
+        Clearances (m), shape (N,): the smaller of the distance to the nearest obstacle
+        (0 on contact) and the distance from the hull's corners to the nearest wall
+        (negative: a corner past a wall).
+    """
+    eta = np.asarray(eta, dtype=np.float64).reshape(-1, 3)
+    obstacles = hull_clearance_series(scenario, eta)
+    hulls = hull_corners(scenario.hull.length_m, scenario.hull.beam_m, eta)
+    (x0, x1), (y0, y1) = scenario.x_range_m, scenario.y_range_m
+    walls = np.minimum.reduce([
+        hulls[..., 0].min(axis=1) - x0, x1 - hulls[..., 0].max(axis=1),
+        hulls[..., 1].min(axis=1) - y0, y1 - hulls[..., 1].max(axis=1),
+    ])  # fmt: skip
+    out: FloatArray = np.minimum(obstacles, walls)
+    return out

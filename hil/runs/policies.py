@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hil.controllers.symbolic.abstraction import arc_poses
-from hil.runs.clearance import hull_clearance_series, hull_corners
+from hil.runs.clearance import hull_margin_series
 from hil.runtime.assembly import select_index
 from hil.scenarios import Scenario
 
@@ -73,14 +73,9 @@ def arc_clearance(scenario: Scenario, state: FloatArray, inputs: FloatArray) -> 
     """
     t_s = np.linspace(0.0, scenario.tau_s, ARC_POINTS)
     poses = arc_poses(state, inputs, t_s).reshape(-1, 3)
-    obstacles = hull_clearance_series(scenario, poses)
-    hulls = hull_corners(scenario.hull.length_m, scenario.hull.beam_m, poses)
-    (x0, x1), (y0, y1) = scenario.x_range_m, scenario.y_range_m
-    walls = np.minimum.reduce([
-        hulls[..., 0].min(axis=1) - x0, x1 - hulls[..., 0].max(axis=1),
-        hulls[..., 1].min(axis=1) - y0, y1 - hulls[..., 1].max(axis=1),
-    ])  # fmt: skip
-    out: FloatArray = np.minimum(obstacles, walls).reshape(len(inputs), ARC_POINTS).min(axis=1)
+    out: FloatArray = hull_margin_series(scenario, poses).reshape(len(inputs), ARC_POINTS).min(
+        axis=1
+    )
     return out
 
 

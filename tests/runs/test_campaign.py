@@ -10,9 +10,11 @@ from hil.runs.campaign import (
     campaign_specs,
     draw_starts,
     draw_velocities,
+    first_decision_path,
     first_decision_s,
     first_decision_state,
 )
+from hil.runs.clearance import hull_margin_series
 from hil.runs.sim_run import SimRunSpec, simulate, synthesizer_for
 from hil.runs.summary import RunSummary, TrackingError
 from hil.runtime.assembly import LayoutSolver, layout_from_scenario
@@ -205,3 +207,28 @@ def test_a_moving_start_is_judged_where_it_drifts_to_by_its_first_decision() -> 
     assert outcome.stats.not_winning_decisions == 0
     assert at == first_decision_state(pose, nu, settle_s)[0]  # deterministic
     assert first_decision_state(pose, None, settle_s) == (pose, None)  # at rest: no drift
+
+
+def test_a_drawn_start_keeps_its_hull_clear_until_the_first_decision() -> None:
+    # The region reaches 0.5 m from the right wall, less than the hull's half-diagonal
+    # (0.519 m): a 1,000-run campaign drew two starts with a hull corner already past
+    # the wall (by 15 mm and 0.7 mm). With the scenario the draw discards such poses,
+    # also where the braking before the first decision would take the hull there.
+    scenario = load_scenario("coarse")
+    controller = LayoutSolver(scenario, synthesizer_for(scenario))(
+        layout_from_scenario(scenario)
+    ).controller
+    wall = StartRegion((0.3, 0.5), (-1.4, 2.4))  # the region's strip along the right wall
+    settle_s = first_decision_s(LoopConfig())
+    velocities = draw_velocities(scenario, 40, moving=0.5, seed=7)
+    blind, _ = draw_starts(controller, 40, seed=7, region=wall, velocities=velocities,
+                           settle_s=settle_s)
+    outside = [p for p in blind if hull_margin_series(scenario, np.array([p]))[0] <= 0.0]
+    assert outside  # the strip does hold such poses, and the controller's draw alone keeps them
+    starts, discarded = draw_starts(controller, 40, seed=7, region=wall, velocities=velocities,
+                                    settle_s=settle_s, scenario=scenario)
+    assert discarded > 0
+    for pose, nu in zip(starts, velocities, strict=True):
+        path, _ = first_decision_path(pose, nu, settle_s)
+        assert path.shape[0] == (1 if nu is None else 107)  # the start, 105 steps, the end
+        assert np.all(hull_margin_series(scenario, path) > 0.0)

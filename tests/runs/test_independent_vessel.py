@@ -227,7 +227,7 @@ def test_random_winning_starts_dock_within_the_guarantee_on_the_independent_trut
     controller = controllers(layout_from_scenario(scenario)).controller
     velocities = [None, draw_velocities(scenario, 1, 1.0, seed=11)[0]]  # at rest, moving
     starts, _ = draw_starts(controller, 2, seed=11, region=StartRegion.of(scenario),
-                            velocities=velocities)
+                            velocities=velocities, scenario=scenario)
     velocity = velocities[index] or (0.0, 0.0, 0.0)
     _check(_run(tmp_path, Start(starts[index], velocity), _domain(2 + index), controllers),
            f"random start {tuple(round(v, 3) for v in starts[index])}, velocity {velocity}")
