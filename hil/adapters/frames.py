@@ -12,12 +12,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from hil.core.geometry import wrap_angle
+from hil.core.geometry import quaternion_yaw, wrap_angle, yaw_quaternion
 from hil.core.samples import Frame, PoseSample, SampleError
 
 
 def yaw_from_quaternion(x: float, y: float, z: float, w: float) -> float:
-    """Return the yaw (rad) of a unit quaternion given in ROS order (x, y, z, w).
+    """Return the yaw (rad, in [-pi, pi)) of a unit quaternion given in ROS order (x, y, z, w).
 
     Raises:
         SampleError: If the quaternion is not finite or far from unit length.
@@ -25,12 +25,12 @@ def yaw_from_quaternion(x: float, y: float, z: float, w: float) -> float:
     norm = math.sqrt(x * x + y * y + z * z + w * w)
     if not math.isfinite(norm) or abs(norm - 1.0) > 1e-3:
         raise SampleError(f"quaternion is not a unit quaternion: {(x, y, z, w)!r}")
-    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    return quaternion_yaw(x, y, z, w)
 
 
 def quaternion_from_yaw(yaw_rad: float) -> tuple[float, float, float, float]:
     """Return the unit quaternion (x, y, z, w) of a pure rotation by `yaw_rad` about z."""
-    return (0.0, 0.0, math.sin(yaw_rad / 2.0), math.cos(yaw_rad / 2.0))
+    return yaw_quaternion(yaw_rad)
 
 
 @dataclass(frozen=True, slots=True)

@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 
 from hil.bag import topics
 from hil.bag.errors import RecordValueError
+from hil.core.geometry import yaw_quaternions
 from hil.core.records import ForceCommand, StateEstimate
 from hil.core.samples import ImuSample, PoseSample, ThrusterCommand, VelocityReference
 
@@ -117,8 +118,7 @@ def _columns(records: Sequence[Any], names: tuple[str, ...]) -> NDArray[np.float
 
 
 def _quaternion_z(values: NDArray[np.float64], yaw: NDArray[np.float64], at: int) -> None:
-    values[:, at + 2] = np.sin(0.5 * yaw)
-    values[:, at + 3] = np.cos(0.5 * yaw)
+    values[:, at : at + 4] = yaw_quaternions(yaw)
 
 
 def encode_poses(records: Sequence[PoseSample]) -> list[Block]:

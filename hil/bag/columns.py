@@ -22,7 +22,7 @@ from hil.bag import typestore as ts
 from hil.bag.errors import MessageDecodeError
 from hil.bag.messages import Record
 from hil.bag.storage import RawMessage
-from hil.core.geometry import wrap_angles
+from hil.core.geometry import quaternion_yaws
 
 FloatArray = NDArray[np.float64]
 
@@ -129,10 +129,7 @@ def _bulk(
     fields = {name: values[:, i].copy() for name, i in spec.fields}
     if spec.yaw_from is not None:
         x, y, z, w = (values[:, spec.yaw_from + k] for k in range(4))
-        fields["yaw_rad"] = np.asarray(
-            wrap_angles(np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))),
-            dtype=np.float64,
-        )
+        fields["yaw_rad"] = quaternion_yaws(x, y, z, w)
     return t_ns, fields
 
 

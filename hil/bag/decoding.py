@@ -8,7 +8,6 @@ rosbags. Conventions are those of :mod:`hil.bag.messages`.
 
 from __future__ import annotations
 
-import math
 import struct
 from collections.abc import Callable
 from functools import cache
@@ -20,7 +19,7 @@ from hil.bag import topics
 from hil.bag import typestore as ts
 from hil.bag.errors import RecordValueError
 from hil.bag.messages import Record
-from hil.core.geometry import wrap_angle
+from hil.core.geometry import quaternion_yaw
 from hil.core.records import Decision, Event, EventLevel, ForceCommand, StateEstimate
 from hil.core.samples import (
     Frame,
@@ -47,9 +46,7 @@ def _t_ns(header: Any) -> int:
 
 def _yaw(q: Any) -> float:
     # Planar pose: yaw about z of the quaternion (x, y, z, w), wrapped to [-pi, pi).
-    siny = 2.0 * (q.w * q.z + q.x * q.y)
-    cosy = 1.0 - 2.0 * (q.y * q.y + q.z * q.z)
-    return float(wrap_angle(math.atan2(siny, cosy)))
+    return quaternion_yaw(float(q.x), float(q.y), float(q.z), float(q.w))
 
 
 def _pose(msg: Any) -> PoseSample:
@@ -238,10 +235,6 @@ def _unpack_stamped(
     return sec * _NS + nsec, frame, _doubles(n).unpack_from(data, offset)
 
 
-def _yaw_xyzw(x: float, y: float, z: float, w: float) -> float:
-    return float(wrap_angle(math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))))
-
-
 def _fast_pose(data: bytes) -> Record | None:
     got = _unpack_stamped(data, 7 + 36)
     if got is None:
@@ -251,7 +244,7 @@ def _fast_pose(data: bytes) -> Record | None:
         frame = Frame(frame_id)
     except ValueError:
         return None  # the slow path words the error
-    return PoseSample(t_ns, v[0], v[1], _yaw_xyzw(v[3], v[4], v[5], v[6]), frame)
+    return PoseSample(t_ns, v[0], v[1], quaternion_yaw(v[3], v[4], v[5], v[6]), frame)
 
 
 def _fast_imu(data: bytes) -> Record | None:
@@ -267,7 +260,8 @@ def _fast_odom(data: bytes) -> Record | None:
     if got is None:
         return None
     t_ns, _, v = got
-    return StateEstimate(t_ns, v[0], v[1], _yaw_xyzw(v[3], v[4], v[5], v[6]), v[43], v[44], v[48])
+    yaw = quaternion_yaw(v[3], v[4], v[5], v[6])
+    return StateEstimate(t_ns, v[0], v[1], yaw, v[43], v[44], v[48])
 
 
 def _fast_twist(data: bytes) -> Record | None:

@@ -31,6 +31,7 @@ import numpy as np
 from hil.bag import topics
 from hil.bag import typestore as ts
 from hil.bag.errors import RecordValueError
+from hil.core.geometry import yaw_quaternion
 from hil.core.records import (
     Decision,
     Event,
@@ -120,8 +121,7 @@ def _encode_header_only(
 
 def encode_pose(sample: PoseSample) -> Encoded:
     """Encode a pose as PoseWithCovarianceStamped in the sample's frame (covariance zero)."""
-    half = 0.5 * sample.yaw_rad
-    values = (sample.x_m, sample.y_m, 0.0, 0.0, 0.0, math.sin(half), math.cos(half), *_ZERO36)
+    values = (sample.x_m, sample.y_m, 0.0, *yaw_quaternion(sample.yaw_rad), *_ZERO36)
     layout = _stamped(sample.frame.value, 43)
     return [(topics.POSE, _encode_header_only(layout, sample.frame.value, sample.t_ns, values))]
 
@@ -166,15 +166,11 @@ def encode_force(record: ForceCommand) -> Encoded:
 
 def encode_state_estimate(record: StateEstimate) -> Encoded:
     """Encode the estimate as nav_msgs/Odometry: pose in the arena, twist in the body frame."""
-    half = 0.5 * record.yaw_rad
     values = (
         record.x_m,
         record.y_m,
         0.0,
-        0.0,
-        0.0,
-        math.sin(half),
-        math.cos(half),
+        *yaw_quaternion(record.yaw_rad),
         *_ZERO36,
         record.surge_mps,
         record.sway_mps,

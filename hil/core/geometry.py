@@ -65,3 +65,33 @@ def body_to_world(psi_rad: float, nu: FloatArray) -> FloatArray:
     out[1] = s * nu[0] + c * nu[1]
     out[2] = nu[2]
     return out
+
+
+# ---- yaw and unit quaternions (ROS order x, y, z, w): the one convention ----
+
+
+def quaternion_yaw(x: float, y: float, z: float, w: float) -> float:
+    """Return the yaw (rad, wrapped to [-pi, pi)) of a unit quaternion in ROS order.
+
+    The rotation about z of any attitude: atan2(2 (w z + x y), 1 - 2 (y^2 + z^2)).
+    """
+    return wrap_angle(math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z)))
+
+
+def quaternion_yaws(x: FloatArray, y: FloatArray, z: FloatArray, w: FloatArray) -> FloatArray:
+    """Return :func:`quaternion_yaw` elementwise: components of one shape, yaws (rad) alike."""
+    return wrap_angles(np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z)))
+
+
+def yaw_quaternion(yaw_rad: float) -> tuple[float, float, float, float]:
+    """Return the unit quaternion (x, y, z, w) of a pure rotation by `yaw_rad` about z."""
+    half = 0.5 * yaw_rad
+    return (0.0, 0.0, math.sin(half), math.cos(half))
+
+
+def yaw_quaternions(yaw_rad: FloatArray) -> FloatArray:
+    """Return :func:`yaw_quaternion` for yaws (N,) (rad): quaternions (x, y, z, w), shape (N, 4)."""
+    half = 0.5 * np.asarray(yaw_rad, dtype=np.float64).reshape(-1)
+    zeros = np.zeros(half.shape[0])
+    out: FloatArray = np.column_stack([zeros, zeros, np.sin(half), np.cos(half)])
+    return out

@@ -9,6 +9,7 @@ import rerun as rr
 from numpy.typing import NDArray
 
 from hil.bag.run_data import Layout, synthesis_time
+from hil.core.geometry import yaw_quaternions
 from hil.core.records import Decision, Event, EventLevel
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
 from hil.core.tracking import tracking_error
@@ -27,7 +28,6 @@ from hil.views.rerun_style import (
     decision_strips,
     finite_or_nan,
     log_styles,
-    quaternion_z,
     rectangle_xy,
 )
 from hil.views.rerun_world import log_arena, log_hull
@@ -93,7 +93,7 @@ class LiveRerunLog:
             self.inner.pose(sample)
         self._at(sample.t_ns)
         position = [sample.x_m, sample.y_m, 0.0]
-        quaternion = quaternion_z(np.array([sample.yaw_rad]))[0]
+        quaternion = yaw_quaternions(np.array([sample.yaw_rad]))[0]
         self.rec.log("world/vessel", rr.Transform3D(translation=position, quaternion=quaternion))
         self.rec.log("world/pose_samples", rr.Points3D([position]))
 

@@ -150,14 +150,6 @@ def send_scalars(
     return len(series)
 
 
-def quaternion_z(yaw_rad: FloatArray) -> FloatArray:
-    """Return rotations about z as quaternions (x, y, z, w), shape (N, 4), for yaw (N,)."""
-    half = 0.5 * np.asarray(yaw_rad, dtype=np.float64)
-    zeros = np.zeros(len(half))
-    out: FloatArray = np.column_stack([zeros, zeros, np.sin(half), np.cos(half)])
-    return out
-
-
 def decision_strips(decision: Decision, tau_s: float) -> tuple[list[FloatArray], list[FloatArray]]:
     """Return the arcs of the safe inputs and of the chosen input (none if none), each (n, 3)."""
     arcs = predicted_arcs(decision.state, decision.safe_inputs_array(), tau_s, _ARC_POINTS)

@@ -15,6 +15,7 @@ import rerun as rr
 from numpy.typing import NDArray
 
 from hil.bag.run_data import RunData, Series
+from hil.core.geometry import yaw_quaternions
 from hil.core.records import Decision
 from hil.scenarios import Hull, Scenario
 from hil.views.controller_view import ControllerView, WinningSlice, inflated_outlines
@@ -24,7 +25,6 @@ from hil.views.rerun_style import (
     GREY,
     closed_strip,
     decision_strips,
-    quaternion_z,
     rectangle_xy,
     send_scalars,
     send_strips,
@@ -123,7 +123,7 @@ def log_vessel(rec: rr.RecordingStream, run: RunData, scenario: Scenario | None)
         "world/vessel",
         indexes=[time_column(series.t_ns)],
         columns=rr.Transform3D.columns(
-            translation=translation, quaternion=quaternion_z(series.values[:, 2])
+            translation=translation, quaternion=yaw_quaternions(series.values[:, 2])
         ),
     )
     return rows + len(series)

@@ -3,7 +3,16 @@ import math
 import numpy as np
 import pytest
 
-from hil.core.geometry import body_to_world, rotation, wrap_angle, wrap_angles
+from hil.core.geometry import (
+    body_to_world,
+    quaternion_yaw,
+    quaternion_yaws,
+    rotation,
+    wrap_angle,
+    wrap_angles,
+    yaw_quaternion,
+    yaw_quaternions,
+)
 
 
 @pytest.mark.parametrize(
@@ -58,3 +67,35 @@ def test_rotation_quarter_turn_maps_surge_to_y() -> None:
     # psi = +90 deg: bow points along world +y, so surge moves the vessel along +y.
     surge = np.array([1.0, 0.0, 0.0])
     np.testing.assert_allclose(body_to_world(math.pi / 2, surge), [0, 1, 0], atol=1e-12)
+
+
+def _hamilton(a: tuple[float, ...], b: tuple[float, ...]) -> tuple[float, ...]:
+    """Return the product a b of quaternions in ROS order (x, y, z, w)."""
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return (
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+        aw * bw - ax * bx - ay * by - az * bz,
+    )
+
+
+def test_yaw_and_quaternion_are_one_convention_scalar_and_vectorized() -> None:
+    rng = np.random.default_rng(4)
+    yaws = rng.uniform(-math.pi, math.pi, 200)
+    quats = yaw_quaternions(yaws)
+    assert quats.shape == (200, 4)
+    for yaw, q in zip(yaws, quats, strict=True):
+        assert yaw_quaternion(float(yaw)) == pytest.approx(tuple(q), abs=1e-15)
+        assert quaternion_yaw(*q) == pytest.approx(yaw, abs=1e-12)
+        # A roll and pitch after the yaw (the mocap's small tilts) keep the yaw:
+        # q = q_yaw * q_pitch * q_roll (z-y-x), so its z-y-x yaw is the same.
+        tilt = _hamilton(
+            (0.0, math.sin(0.02), 0.0, math.cos(0.02)), (math.sin(-0.03), 0.0, 0.0, math.cos(0.03))
+        )
+        assert quaternion_yaw(*_hamilton(tuple(q), tilt)) == pytest.approx(yaw, abs=1e-12)
+    np.testing.assert_allclose(quaternion_yaws(*quats.T), yaws, atol=1e-12)
+    # Wrapped to [-pi, pi): a half turn reads as -pi in both forms.
+    assert quaternion_yaw(*yaw_quaternion(math.pi)) == -math.pi
+    assert quaternion_yaws(*yaw_quaternions(np.array([math.pi])).T)[0] == -math.pi
