@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 
 from hil.bag import topics
 from hil.bag.storage import RawMessage
+from hil.core.timeline import in_force
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -127,7 +128,7 @@ def _held(t_ns: IntArray, src_t: IntArray, src: FloatArray) -> FloatArray:
     out = np.zeros((len(t_ns), src.shape[1]))
     if not len(src_t):
         return out
-    k = np.searchsorted(src_t, t_ns, side="right") - 1
+    k = in_force(src_t, t_ns)
     has = k >= 0
     out[has] = src[k[has]]
     return out

@@ -21,6 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from hil.core.timeline import in_force
+
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
@@ -107,6 +109,6 @@ def tracking_error(
         )
     if np.any(rt[1:] < rt[:-1]):
         raise ValueError("reference times must be ascending")
-    held = np.searchsorted(rt, t, side="right") - 1
+    held = in_force(rt, t)
     keep = held >= 0
     return TrackingSeries(t[keep], v[keep] - rv[held[keep]])

@@ -36,6 +36,7 @@ from hil.bag.lab_streams import LabTopics, PoseMap
 from hil.bag.run_data import Layout, RunData, Series
 from hil.core.geometry import wrap_angles
 from hil.core.records import Decision
+from hil.core.timeline import in_force
 from hil.core.tracking import AXES, DISPLAY_UNITS, for_display
 from hil.replay.controllers import ControllerCache
 from hil.replay.intervals import check_contract, judge_intervals
@@ -154,7 +155,7 @@ def lab_ticks(run: RunData, loop: LoopConfig) -> IntArray:
 
 def _held(series: Series, t_ns: IntArray) -> tuple[IntArray, FloatArray]:
     """Return the samples of `series` in force at `t_ns` (those after its first sample)."""
-    k = np.searchsorted(series.t_ns, t_ns, side="right") - 1
+    k = in_force(series.t_ns, t_ns)
     has = k >= 0
     return t_ns[has], series.values[k[has]]
 

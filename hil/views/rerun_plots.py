@@ -17,6 +17,7 @@ import rerun as rr
 from numpy.typing import NDArray
 
 from hil.bag.run_data import RunData, Series
+from hil.core.timeline import in_force
 from hil.core.transient import TransientBudget
 from hil.replay.intervals import budget_class, envelope_bound
 from hil.views.rerun_style import (
@@ -57,10 +58,10 @@ def envelope_band(run: RunData, budget: TransientBudget, t_ns: NDArray[np.int64]
     if not decisions or not len(times):
         return out
     starts = np.array([d.t_ns for d in decisions], dtype=np.int64)
-    in_force = np.searchsorted(starts, times, side="right") - 1
+    decision_at = in_force(starts, times)
     for n, d in enumerate(decisions):
         cls = budget_class(d)
-        mask = in_force == n
+        mask = decision_at == n
         if cls is not None and mask.any():
             out[mask] = envelope_bound(budget, cls, (times[mask] - d.t_ns) / NS_PER_S)
     return out
