@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from hil.adapters.frames import ArenaTransform, quaternion_from_yaw, yaw_from_quaternion
-from hil.core.geometry import wrap_angle
+from hil.core.azimuth import azimuth_command, azimuth_vector
 from hil.core.samples import (
     Frame,
     ImuSample,
@@ -191,14 +191,8 @@ def thruster_wrench_components(command: ThrusterCommand) -> dict[str, tuple[floa
     """
     return {
         "tunnel": (command.tunnel, 0.0),
-        "port": (
-            command.port * math.cos(command.port_angle_rad),
-            command.port * math.sin(command.port_angle_rad),
-        ),
-        "starboard": (
-            command.starboard * math.cos(command.starboard_angle_rad),
-            command.starboard * math.sin(command.starboard_angle_rad),
-        ),
+        "port": azimuth_vector(command.port, command.port_angle_rad),
+        "starboard": azimuth_vector(command.starboard, command.starboard_angle_rad),
     }
 
 
@@ -211,25 +205,13 @@ def thruster_command_from_components(
 ) -> ThrusterCommand:
     """Rebuild a command from the lab's wrench components (inverse of the above).
 
-    The vector fixes the thrust direction but not the sign of the propeller: like
-    a driver that turns each pod at most 90 degrees, the pod keeps the side of its
-    previous angle and reverses the propeller when the vector points behind it.
-    A zero vector carries no angle; the previous angle (or the reference angle)
-    is kept then.
+    The decode rule of :mod:`hil.core.azimuth`: each pod keeps the side of its angle in
+    `previous` (without one, of its reference angle) and reverses the propeller when
+    the vector points behind it; a zero vector keeps the angle.
     """
     fallback = previous or ThrusterCommand.zero(t_ns)
-
-    def polar(xy: tuple[float, float], previous_angle: float) -> tuple[float, float]:
-        magnitude = math.hypot(*xy)
-        if magnitude < 1e-12:
-            return 0.0, previous_angle
-        angle = math.atan2(xy[1], xy[0])
-        if math.cos(angle - previous_angle) < 0.0:
-            return -min(magnitude, 1.0), wrap_angle(angle + math.pi)
-        return min(magnitude, 1.0), angle
-
-    port_thrust, port_angle = polar(port, fallback.port_angle_rad)
-    stbd_thrust, stbd_angle = polar(starboard, fallback.starboard_angle_rad)
+    port_thrust, port_angle = azimuth_command(*port, fallback.port_angle_rad)
+    stbd_thrust, stbd_angle = azimuth_command(*starboard, fallback.starboard_angle_rad)
     return ThrusterCommand(
         t_ns, max(-1.0, min(1.0, tunnel_x)), port_thrust, stbd_thrust, port_angle, stbd_angle
     )

@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 
 from hil.bag import topics
 from hil.bag.errors import RecordValueError
+from hil.core.azimuth import azimuth_vectors
 from hil.core.geometry import yaw_quaternions
 from hil.core.records import ForceCommand, StateEstimate
 from hil.core.samples import ImuSample, PoseSample, ThrusterCommand, VelocityReference
@@ -190,11 +191,9 @@ def encode_thruster_commands(records: Sequence[ThrusterCommand]) -> list[Block]:
     tunnel = np.zeros((n, 6))
     tunnel[:, 0] = cols[:, 0]
     port = np.zeros((n, 6))
-    port[:, 0] = cols[:, 1] * np.cos(cols[:, 3])
-    port[:, 1] = cols[:, 1] * np.sin(cols[:, 3])
+    port[:, :2] = azimuth_vectors(cols[:, 1], cols[:, 3])
     starboard = np.zeros((n, 6))
-    starboard[:, 0] = cols[:, 2] * np.cos(cols[:, 4])
-    starboard[:, 1] = cols[:, 2] * np.sin(cols[:, 4])
+    starboard[:, :2] = azimuth_vectors(cols[:, 2], cols[:, 4])
     return [
         Block(topics.THRUSTER_TUNNEL, t, _fill(_WRENCH, t, tunnel)),
         Block(topics.THRUSTER_PORT, t, _fill(_WRENCH, t, port)),

@@ -26,6 +26,8 @@ from numpy.typing import NDArray
 
 from hil.bag import topics
 from hil.bag.storage import RawMessage
+from hil.core.azimuth import azimuth_commands
+from hil.core.samples import ThrusterCommand
 from hil.core.timeline import in_force
 
 FloatArray = NDArray[np.float64]
@@ -148,20 +150,17 @@ def thrusters_from_wrenches(
 
     Returns:
         Times (union of the three, ascending) and (N, 5) columns: tunnel, port,
-        starboard in [-1, 1] (azimuths as magnitudes), port and starboard angles
-        (rad); each thruster's newest command held (zero before its first).
+        starboard in [-1, 1], port and starboard angles (rad); each thruster's newest
+        command held (zero before its first). The azimuths by the decode rule of
+        :mod:`hil.core.azimuth`: each pod keeps the side of its angle before (its
+        reference angle before the first), as the lab's driver turns it.
     """
     t_ns = np.unique(np.concatenate([tunnel[0], port[0], starboard[0]]))
     tun = _held(t_ns, *tunnel)
     prt = _held(t_ns, *port)
     stb = _held(t_ns, *starboard)
-    values = np.column_stack(
-        [
-            tun[:, 0],
-            np.hypot(prt[:, 0], prt[:, 1]),
-            np.hypot(stb[:, 0], stb[:, 1]),
-            np.arctan2(prt[:, 1], prt[:, 0]),
-            np.arctan2(stb[:, 1], stb[:, 0]),
-        ]
-    )
+    rest = ThrusterCommand.zero(0)
+    port_thrust, port_angle = azimuth_commands(prt[:, 0], prt[:, 1], rest.port_angle_rad)
+    stbd_thrust, stbd_angle = azimuth_commands(stb[:, 0], stb[:, 1], rest.starboard_angle_rad)
+    values = np.column_stack([tun[:, 0], port_thrust, stbd_thrust, port_angle, stbd_angle])
     return t_ns.astype(np.int64), values

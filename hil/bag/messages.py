@@ -20,7 +20,6 @@ lossless copy on ``/hil/thrusters`` is the one read back.
 
 from __future__ import annotations
 
-import math
 import struct
 from collections.abc import Callable
 from functools import cache
@@ -31,6 +30,7 @@ import numpy as np
 from hil.bag import topics
 from hil.bag import typestore as ts
 from hil.bag.errors import RecordValueError
+from hil.core.azimuth import azimuth_vector
 from hil.core.geometry import yaw_quaternion
 from hil.core.records import (
     Decision,
@@ -195,18 +195,11 @@ def encode_thrusters(sample: ThrusterCommand) -> Encoded:
     """Encode thruster commands on the lab's three Wrench topics and on /hil/thrusters."""
     tunnel = _WRENCH.pack(_ENCAPSULATION, sample.tunnel, 0.0, 0.0, 0.0, 0.0, 0.0)
     port = _WRENCH.pack(
-        _ENCAPSULATION,
-        sample.port * math.cos(sample.port_angle_rad),
-        sample.port * math.sin(sample.port_angle_rad),
-        0.0,
-        0.0,
-        0.0,
-        0.0,
+        _ENCAPSULATION, *azimuth_vector(sample.port, sample.port_angle_rad), 0.0, 0.0, 0.0, 0.0
     )
     starboard = _WRENCH.pack(
         _ENCAPSULATION,
-        sample.starboard * math.cos(sample.starboard_angle_rad),
-        sample.starboard * math.sin(sample.starboard_angle_rad),
+        *azimuth_vector(sample.starboard, sample.starboard_angle_rad),
         0.0,
         0.0,
         0.0,
