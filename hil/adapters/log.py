@@ -14,16 +14,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
 from hil.adapters.interfaces import ThrusterSinkError
 from hil.bag.errors import BagError
 from hil.bag.run_data import RunData, Series
+from hil.core.arrays import FloatArray, IntArray
 from hil.core.clock import SimClock
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 THRUSTER_FAILURE_CODE = "thruster_failure"
 """Event code the runtime logs when a thruster command cannot be delivered."""

@@ -22,6 +22,7 @@ from typing import Any
 
 from hil.adapters.frames import ArenaTransform, quaternion_from_yaw, yaw_from_quaternion
 from hil.core.azimuth import azimuth_command, azimuth_vector
+from hil.core.clock import NS_PER_S
 from hil.core.samples import (
     Frame,
     ImuSample,
@@ -30,8 +31,6 @@ from hil.core.samples import (
     SampleError,
     ThrusterCommand,
 )
-
-NS_PER_S = 1_000_000_000
 
 
 class RosBackendError(RuntimeError):

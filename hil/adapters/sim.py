@@ -14,10 +14,10 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import NDArray
 
 from hil.adapters.interfaces import ThrusterSinkError
-from hil.core.clock import SimClock
+from hil.core.arrays import FloatArray
+from hil.core.clock import NS_PER_S, SimClock
 from hil.core.motion import ObstacleMotion as ObstacleMotion  # re-exported: SimConfig's motions
 from hil.core.motion import displacements_m
 from hil.core.samples import (
@@ -44,9 +44,6 @@ from hil.sim.plant import (
     plant_advance,
 )
 from hil.sim.sensors import ImuSensorConfig, PoseSensorConfig, SimulatedImu, SimulatedPoseSensor
-
-FloatArray = NDArray[np.float64]
-NS_PER_S = 1_000_000_000
 
 
 @dataclass(frozen=True, slots=True)

@@ -27,13 +27,13 @@ from numpy.typing import NDArray
 from hil.bag import topics
 from hil.bag.errors import RecordValueError
 from hil.core.azimuth import azimuth_vectors
+from hil.core.clock import NS_PER_S
 from hil.core.geometry import yaw_quaternions
 from hil.core.records import ForceCommand, StateEstimate
 from hil.core.samples import ImuSample, PoseSample, ThrusterCommand, VelocityReference
 
 _ENCAPSULATION = b"\x00\x01\x00\x00"
-_NS = 1_000_000_000
-_MAX_T_NS = 2**31 * _NS
+_MAX_T_NS = 2**31 * NS_PER_S
 
 
 @dataclass(frozen=True, slots=True)
@@ -95,7 +95,7 @@ def _fill(
     out = np.empty((n, layout.size), dtype=np.uint8)
     out[:, : layout.values_offset] = np.frombuffer(layout.prefix, dtype=np.uint8)
     if layout.stamp_offset is not None:
-        sec, nsec = np.divmod(t_ns, _NS)
+        sec, nsec = np.divmod(t_ns, NS_PER_S)
         stamp = np.empty((n, 2), dtype="<u4")
         stamp[:, 0] = sec.astype("<i4").view("<u4")
         stamp[:, 1] = nsec

@@ -22,9 +22,8 @@ from hil.bag import typestore as ts
 from hil.bag.errors import MessageDecodeError
 from hil.bag.messages import Record
 from hil.bag.storage import RawMessage
+from hil.core.arrays import FloatArray
 from hil.core.geometry import quaternion_yaws
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True, slots=True)

@@ -19,6 +19,7 @@ from hil.bag import topics
 from hil.bag import typestore as ts
 from hil.bag.errors import RecordValueError
 from hil.bag.messages import Record
+from hil.core.clock import NS_PER_S
 from hil.core.geometry import quaternion_yaw
 from hil.core.records import Decision, Event, EventLevel, ForceCommand, StateEstimate
 from hil.core.samples import (
@@ -33,15 +34,13 @@ from hil.core.samples import (
 )
 from hil.core.shapes import Rect
 
-_NS = 1_000_000_000
-
 
 def _pad(offset: int, align: int) -> int:
     return (-offset) % align
 
 
 def _t_ns(header: Any) -> int:
-    return int(header.stamp.sec) * _NS + int(header.stamp.nanosec)
+    return int(header.stamp.sec) * NS_PER_S + int(header.stamp.nanosec)
 
 
 def _yaw(q: Any) -> float:
@@ -232,7 +231,7 @@ def _unpack_stamped(
     offset += _pad(offset - 4, 8)
     if len(data) != offset + 8 * n:
         return None
-    return sec * _NS + nsec, frame, _doubles(n).unpack_from(data, offset)
+    return sec * NS_PER_S + nsec, frame, _doubles(n).unpack_from(data, offset)
 
 
 def _fast_pose(data: bytes) -> Record | None:

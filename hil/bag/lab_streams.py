@@ -22,16 +22,13 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from hil.bag import topics
 from hil.bag.storage import RawMessage
+from hil.core.arrays import FloatArray, IntArray
 from hil.core.azimuth import azimuth_commands
 from hil.core.samples import ThrusterCommand
 from hil.core.timeline import in_force
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 TWIST_TYPE = "geometry_msgs/msg/Twist"
 """The lab's velocity command (unstamped)."""

@@ -31,6 +31,7 @@ from hil.bag import topics
 from hil.bag import typestore as ts
 from hil.bag.errors import RecordValueError
 from hil.core.azimuth import azimuth_vector
+from hil.core.clock import NS_PER_S
 from hil.core.geometry import yaw_quaternion
 from hil.core.records import (
     Decision,
@@ -75,7 +76,6 @@ RECORD_TYPES: tuple[type, ...] = (
 Encoded = list[tuple[str, bytes]]
 
 _ENCAPSULATION = b"\x00\x01\x00\x00"  # CDR, little endian
-_NS = 1_000_000_000
 
 
 @cache
@@ -105,9 +105,9 @@ _WRENCH = struct.Struct("<4s6d")
 
 
 def _stamp(t_ns: int) -> tuple[int, int]:
-    if t_ns < 0 or t_ns >= 2**31 * _NS:
+    if t_ns < 0 or t_ns >= 2**31 * NS_PER_S:
         raise RecordValueError(f"time {t_ns!r} ns does not fit a ROS stamp (int32 seconds >= 0)")
-    sec, nsec = divmod(int(t_ns), _NS)
+    sec, nsec = divmod(int(t_ns), NS_PER_S)
     return sec, nsec
 
 

@@ -43,7 +43,8 @@ from hil.bag.mcap_writer import McapChunkWriter
 from hil.bag.messages import Encoded, Record, encode
 from hil.bag.metadata import FileEntry, TopicEntry, write_metadata
 from hil.bag.run_info import RunInfo
-from hil.core.records import Decision, Event, EventLevel, FloatArray, ForceCommand, StateEstimate
+from hil.core.arrays import FloatArray
+from hil.core.records import Decision, Event, EventLevel, ForceCommand, StateEstimate
 from hil.core.samples import (
     ImuSample,
     ObstacleLayout,

@@ -57,13 +57,11 @@ from hil.bag.messages import Record
 from hil.bag.reader import BagInfo, BagReader, SkippedMessage
 from hil.bag.run_info import RunInfo
 from hil.bag.storage import RawMessage
+from hil.core.arrays import FloatArray, IntArray
 from hil.core.records import Decision, Event
 from hil.core.samples import ObstacleLayout
 from hil.core.shapes import Rect
 from hil.core.tracking import TrackingSeries, tracking_error
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 _SYNTHESIS_TEXT = re.compile(r"controller v(\d+) in ([0-9.eE+-]+) s")
 _CONTROLLER_READY = "controller_ready"

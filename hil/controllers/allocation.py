@@ -38,7 +38,6 @@ from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
-from numpy.typing import NDArray
 
 from hil.controllers.allocation_kernels import (
     extended_matrix,
@@ -46,9 +45,8 @@ from hil.controllers.allocation_kernels import (
     pseudo_inverse_allocate,
 )
 from hil.controllers.errors import AllocationConfigError, NonFiniteDemandError
+from hil.core.arrays import FloatArray
 from hil.model.thrusters import VOYAGER_THRUSTERS, ThrusterParams
-
-FloatArray = NDArray[np.float64]
 
 __all__ = [
     "AllocationResult",

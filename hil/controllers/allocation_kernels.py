@@ -13,13 +13,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numpy.typing import NDArray
 
+from hil.core.arrays import FloatArray
 from hil.core.geometry import wrap_angle
 from hil.core.jit import njit
 from hil.model.thrusters import T_K_TUNNEL, T_LX_PORT, T_LX_TUNNEL, T_LY_PORT, T_UMAX_TUNNEL
-
-FloatArray = NDArray[np.float64]
 
 __all__ = [
     "N_XI",

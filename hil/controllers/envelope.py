@@ -9,12 +9,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numpy.typing import NDArray
 
 from hil.controllers.allocation_kernels import extended_matrix, force_limits
+from hil.core.arrays import FloatArray
 from hil.model.thrusters import VOYAGER_THRUSTERS, ThrusterParams
-
-FloatArray = NDArray[np.float64]
 
 __all__ = ["axis_force_limits", "support_force"]
 

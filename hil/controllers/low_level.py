@@ -31,7 +31,6 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
-from numpy.typing import NDArray
 
 from hil.controllers.allocation import MmaArrays, MmaConfig
 from hil.controllers.allocation_kernels import mma_allocate, pseudo_inverse_allocate
@@ -44,6 +43,7 @@ from hil.controllers.pid import (
     pid_command,
     pid_integrate,
 )
+from hil.core.arrays import FloatArray
 from hil.core.jit import njit
 from hil.model.coefficients import ENTERPRISE_I, VesselParams
 from hil.model.thrusters import (
@@ -53,8 +53,6 @@ from hil.model.thrusters import (
     thruster_force,
     thruster_update,
 )
-
-FloatArray = NDArray[np.float64]
 
 # Layout of the low-level state array.
 L_PID = 0

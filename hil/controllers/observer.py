@@ -61,9 +61,9 @@ from hil.controllers.observer_math import (
     P_RESTART_VAR_BR,
     P_RESTART_VAR_R,
     P_RESTART_VAR_UV,
-    FloatArray,
 )
 from hil.controllers.observer_ring import M_INIT
+from hil.core.arrays import FloatArray
 from hil.core.samples import Frame, ImuSample, PoseSample, SampleError
 
 __all__ = [

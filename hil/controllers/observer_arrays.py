@@ -13,8 +13,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from hil.controllers.observer_math import N_STATE, FloatArray
-from hil.controllers.observer_ring import IntArray
+from hil.controllers.observer_math import N_STATE
+from hil.core.arrays import FloatArray, IntArray
 
 __all__ = [
     "C_GYRO_GATED",

@@ -69,7 +69,6 @@ from hil.controllers.observer_math import (
     P_RESTART_VAR_BR,
     P_RESTART_VAR_R,
     P_RESTART_VAR_UV,
-    FloatArray,
     _update_pose,
     ekf_predict,
     ekf_update_yaw_rate,
@@ -88,7 +87,6 @@ from hil.controllers.observer_ring import (
     Z_R,
     Z_X,
     Z_Y,
-    IntArray,
     fuse_stored,
     head_time,
     insert_slot,
@@ -101,6 +99,7 @@ from hil.controllers.observer_ring import (
     slot_index,
     store_prior,
 )
+from hil.core.arrays import FloatArray, IntArray
 from hil.core.geometry import wrap_angle
 from hil.core.jit import njit
 

@@ -43,13 +43,9 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-from numpy.typing import NDArray
-
+from hil.core.arrays import FloatArray
 from hil.core.geometry import wrap_angle
 from hil.core.jit import njit
-
-FloatArray = NDArray[np.float64]
 
 # State indices.
 I_X = 0

@@ -20,7 +20,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numpy.typing import NDArray
 
 from hil.controllers.observer_math import (
     N_STATE,
@@ -29,14 +28,12 @@ from hil.controllers.observer_math import (
     P_R_PSI,
     P_R_X,
     P_R_Y,
-    FloatArray,
     _update_pose,
     ekf_predict,
     ekf_update_yaw_rate,
 )
+from hil.core.arrays import FloatArray, IntArray
 from hil.core.jit import njit
-
-IntArray = NDArray[np.int64]
 
 # meta array (int64, shape (4,)).
 M_START = 0  # physical index of the oldest slot

@@ -27,16 +27,14 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
 from hil.controllers.allocation_kernels import matvec
 from hil.controllers.envelope import axis_force_limits
+from hil.core.arrays import FloatArray
 from hil.core.jit import njit
 from hil.model.coefficients import ENTERPRISE_I, VesselParams
 from hil.model.dynamics import hydro_force
 from hil.model.thrusters import VOYAGER_THRUSTERS, ThrusterParams
-
-FloatArray = NDArray[np.float64]
 
 # Layout of the gain array.
 G_KP = 0

@@ -16,11 +16,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numpy.typing import NDArray
 
+from hil.core.arrays import FloatArray
 from hil.core.geometry import wrap_angle
-
-FloatArray = NDArray[np.float64]
 
 __all__ = ["azimuth_command", "azimuth_commands", "azimuth_vector", "azimuth_vectors"]
 

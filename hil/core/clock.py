@@ -10,6 +10,9 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
+NS_PER_S = 1_000_000_000
+"""Nanoseconds per second: every hil time stamp is integer nanoseconds."""
+
 
 class SimClock:
     """Simulated time that advances the world when the loop sleeps.

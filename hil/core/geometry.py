@@ -9,11 +9,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numpy.typing import NDArray
 
+from hil.core.arrays import FloatArray
 from hil.core.jit import njit
-
-FloatArray = NDArray[np.float64]
 
 TWO_PI = 2.0 * math.pi
 

@@ -13,11 +13,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
+from hil.core.arrays import FloatArray
 from hil.core.shapes import Rect
-
-FloatArray = NDArray[np.float64]
 
 
 class Frame(enum.Enum):

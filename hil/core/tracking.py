@@ -19,12 +19,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
+from hil.core.arrays import FloatArray, IntArray
 from hil.core.timeline import in_force
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 AXES = ("surge", "sway", "yaw")
 """Axis names, in the column order of every (N, 3) velocity array."""

@@ -46,10 +46,9 @@ from dataclasses import dataclass
 from enum import IntEnum
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
+from hil.core.arrays import FloatArray, IntArray
 
 __all__ = [
     "LATE_S",

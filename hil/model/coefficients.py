@@ -12,11 +12,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
+from hil.core.arrays import FloatArray
 from hil.model.errors import VesselConfigError
-
-FloatArray = NDArray[np.float64]
 
 __all__ = ["ENTERPRISE_I", "N_COEF", "VesselParams"]
 

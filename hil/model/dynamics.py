@@ -19,8 +19,8 @@ import enum
 import math
 
 import numpy as np
-from numpy.typing import NDArray
 
+from hil.core.arrays import FloatArray
 from hil.core.geometry import wrap_angle
 from hil.core.jit import njit
 from hil.model.coefficients import (
@@ -50,8 +50,6 @@ from hil.model.coefficients import (
     I_YVV,
     I_YVVV,
 )
-
-FloatArray = NDArray[np.float64]
 
 __all__ = [
     "Integrator",

@@ -17,13 +17,11 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import NDArray
 
+from hil.core.arrays import FloatArray
 from hil.core.geometry import wrap_angle
 from hil.core.jit import njit
 from hil.model.errors import NonFiniteCommandError, StateShapeError, VesselConfigError
-
-FloatArray = NDArray[np.float64]
 
 # Layout of the thruster parameter array.
 T_LX_TUNNEL = 0

@@ -12,14 +12,12 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import NDArray
 
+from hil.core.arrays import FloatArray
 from hil.core.geometry import wrap_angle
 from hil.model.coefficients import ENTERPRISE_I, VesselParams
 from hil.model.dynamics import Integrator, acceleration, integrate_step, simulate_kernel
 from hil.model.errors import NonFiniteForceError, StateShapeError, VesselConfigError
-
-FloatArray = NDArray[np.float64]
 
 __all__ = ["Vessel", "VesselState"]
 

@@ -39,10 +39,10 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from hil.bag.run_data import RunData
 from hil.controllers.symbolic import ControllerSources, NoWinningSetError, cost, wait_index
+from hil.core.arrays import FloatArray
 from hil.core.geometry import wrap_angles
 from hil.core.records import Decision
 from hil.core.samples import ObstacleLayout
@@ -52,7 +52,6 @@ from hil.runtime.assembly import SymbolicAdapter, select_index
 from hil.runtime.settings import NS_PER_S
 from hil.runtime.stack import SymbolicController
 
-FloatArray = NDArray[np.float64]
 _READY = re.compile(r"controller v(\d+)\b")
 ROW_TOLERANCE = 1e-9
 """Largest difference between a recorded input row and the grid's (m/s, rad/s)."""

@@ -38,6 +38,8 @@ from numpy.typing import NDArray
 
 from hil.bag.run_data import RunData
 from hil.controllers.symbolic import DecisionContract
+from hil.core.arrays import FloatArray
+from hil.core.clock import NS_PER_S
 from hil.core.records import Decision
 from hil.core.tracking import AXES, DISPLAY_UNITS, for_display
 from hil.core.transient import TransientBudget
@@ -46,9 +48,6 @@ from hil.replay.decisions import decision_controllers
 from hil.replay.regression import Check, Finding, Interval, Status, time_s
 from hil.runtime.assembly import SymbolicAdapter
 from hil.scenarios import Scenario
-
-FloatArray = NDArray[np.float64]
-NS_PER_S = 1_000_000_000
 
 VELOCITY_ESTIMATE_TOLERANCE = (0.012, 0.010, 0.015)
 """Allowance for the EKF's own velocity error (surge m/s, sway m/s, yaw rate rad/s).

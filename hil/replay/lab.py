@@ -27,13 +27,14 @@ import dataclasses
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import NDArray
 
 from hil.adapters.frames import ArenaTransform
 from hil.bag import topics
 from hil.bag.errors import ReplayError
 from hil.bag.lab_streams import LabTopics, PoseMap
 from hil.bag.run_data import Layout, RunData, Series
+from hil.core.arrays import FloatArray, IntArray
+from hil.core.clock import NS_PER_S
 from hil.core.geometry import wrap_angles
 from hil.core.records import Decision
 from hil.core.timeline import in_force
@@ -48,10 +49,6 @@ from hil.runs.vessel_run import VesselConfig
 from hil.runtime.assembly import layout_from_scenario
 from hil.runtime.settings import LoopConfig
 from hil.scenarios import Scenario
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
-NS_PER_S = 1_000_000_000
 
 NOT_JUDGED = (
     "recorded decisions (no /hil/decision): whether the vessel's controller decided as the "

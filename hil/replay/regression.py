@@ -20,9 +20,8 @@ from dataclasses import dataclass, field
 from typing import Any
 from xml.etree import ElementTree as ET
 
+from hil.core.clock import NS_PER_S
 from hil.core.records import Decision
-
-NS_PER_S = 1_000_000_000
 
 
 class Status(enum.Enum):

@@ -18,6 +18,7 @@ import math
 import numpy as np
 
 from hil.bag.run_data import RunData, Series
+from hil.core.clock import NS_PER_S
 from hil.replay.controllers import ControllerCache, ScenarioMismatchError
 from hil.replay.decisions import BOUNDARY, TIE, compare_rerun_decisions
 from hil.replay.options import Tolerance
@@ -28,7 +29,6 @@ from hil.runs.sim_run import SimRunSpec, run_in_sim, spec_from_json
 from hil.runtime.settings import LoopConfig
 from hil.runtime.trace import MemoryLog
 
-NS_PER_S = 1_000_000_000
 MANIFEST = "suite.json"
 """File beside a suite's logs that holds each run's full specification (start, faults)."""
 

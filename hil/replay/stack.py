@@ -25,11 +25,12 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
 from hil.adapters.interfaces import ThrusterSinkError
 from hil.adapters.log import LogWorld, thruster_failures_ns
 from hil.bag.run_data import RunData, Series
+from hil.core.arrays import FloatArray, IntArray
+from hil.core.clock import NS_PER_S
 from hil.core.geometry import wrap_angles
 from hil.core.records import Event
 from hil.core.samples import ThrusterCommand
@@ -46,10 +47,6 @@ from hil.runtime.resynthesis import ResynthesisMode
 from hil.runtime.settings import LoopConfig
 from hil.runtime.stats import RunStats
 from hil.runtime.trace import MemoryLog
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
-NS_PER_S = 1_000_000_000
 
 
 def tick_times(run: RunData) -> IntArray:

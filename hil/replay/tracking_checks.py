@@ -19,16 +19,14 @@ import math
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from hil.bag.run_data import RunData
+from hil.core.arrays import FloatArray
 from hil.core.tracking import AXES, DISPLAY_UNITS, TrackingSeries, for_display
 from hil.replay.options import Tolerance
 from hil.replay.regression import Check, Finding, Status
 from hil.runs.summary import PAPER_TRACKING_ERROR
 
-FloatArray = NDArray[np.float64]
-NS_PER_S = 1_000_000_000
 _AXES = AXES
 _UNITS = DISPLAY_UNITS
 

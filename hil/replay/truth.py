@@ -22,24 +22,21 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import NDArray
 
 from hil.adapters.frames import ArenaTransform
 from hil.bag.errors import ReplayError
 from hil.bag.run_data import RunData, load_run
 from hil.controllers.symbolic import Controller
+from hil.core.arrays import FloatArray, IntArray
+from hil.core.clock import NS_PER_S
 from hil.core.geometry import wrap_angles
 from hil.core.samples import Frame, PoseSample
 from hil.replay.controllers import ControllerCache, resolve_scenario
 from hil.replay.decisions import decision_controllers
 from hil.runs.guarantee import GuaranteeViolations, judge_run
 
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
-
 __all__ = ["TrueTrajectory", "TruthError", "TruthJudgement", "judge_log_on_truth", "load_truth"]
 
-NS_PER_S = 1_000_000_000
 
 _COLUMNS = {
     Frame.LAB_NED: ("north_m", "east_m", "yaw_rad"),

@@ -16,10 +16,10 @@ from dataclasses import dataclass, replace
 from functools import partial
 
 import numpy as np
-from numpy.typing import NDArray
 
 from hil.adapters.sim import SimConfig, SimWorld
 from hil.controllers.symbolic import Controller
+from hil.core.arrays import FloatArray
 from hil.core.codec import from_jsonable, to_jsonable
 from hil.runs.clearance import hull_margin_series
 from hil.runs.executor import Executor, LocalExecutor
@@ -32,8 +32,6 @@ from hil.runtime.assembly import low_level_for
 from hil.runtime.settings import NS_PER_S, LoopConfig
 from hil.scenarios import Scenario
 from hil.sim.plant import P_ETA, P_NU, TR_ETA
-
-FloatArray = NDArray[np.float64]
 
 PAPER_TANK_MINUTES = (2.67, 1.71, 3.66)
 """Docking time in the towing tank (paper): mean, min, max (min)."""

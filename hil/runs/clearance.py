@@ -11,10 +11,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from hil.core.arrays import FloatArray
 from hil.core.shapes import Shape
 from hil.scenarios import Scenario
-
-FloatArray = NDArray[np.float64]
 
 
 def hull_corners(length_m: float, beam_m: float, eta: FloatArray) -> FloatArray:

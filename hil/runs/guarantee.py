@@ -24,9 +24,10 @@ from dataclasses import dataclass, fields
 from itertools import pairwise
 
 import numpy as np
-from numpy.typing import NDArray
 
 from hil.controllers.symbolic import Controller, DecisionContract, cells_of
+from hil.core.arrays import FloatArray
+from hil.core.clock import NS_PER_S
 from hil.core.motion import ObstacleMotion, displacements_m
 from hil.core.records import Decision
 from hil.core.shapes import Shape
@@ -38,12 +39,8 @@ from hil.runtime.trace import MemoryLog
 from hil.scenarios import Scenario
 from hil.sim.plant import TR_ETA
 
-FloatArray = NDArray[np.float64]
-BoolArray = NDArray[np.bool_]
-
 __all__ = ["GuaranteeViolations", "judge_outcome", "judge_run", "judged_run"]
 
-NS_PER_S = 1_000_000_000
 
 
 @dataclass(frozen=True, slots=True)

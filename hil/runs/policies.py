@@ -25,14 +25,13 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-from numpy.typing import NDArray
 
 from hil.controllers.symbolic.abstraction import arc_poses
+from hil.core.arrays import FloatArray
 from hil.runs.clearance import hull_margin_series
 from hil.runtime.assembly import select_index
 from hil.scenarios import Scenario
 
-FloatArray = NDArray[np.float64]
 Select = Callable[[FloatArray, FloatArray, FloatArray], int]
 """Picks a row of the safe inputs (k, 3) given the previous input (3,) and the estimated
 state (3,): x m, y m, psi rad."""

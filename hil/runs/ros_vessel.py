@@ -17,7 +17,6 @@ from dataclasses import replace
 from typing import Any
 
 from hil.adapters.ros import (
-    NS_PER_S,
     RosBackendError,
     RosConfig,
     fill_imu_msg,
@@ -26,6 +25,7 @@ from hil.adapters.ros import (
     thruster_command_from_components,
 )
 from hil.adapters.sim import SimWorld
+from hil.core.clock import NS_PER_S
 from hil.core.samples import ThrusterCommand
 
 # Simulated time advanced per publication cycle (s).

@@ -19,13 +19,14 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from hil.adapters.sim import ObstacleMotion, SimConfig, SimWorld, ThrusterOutage
 from hil.bag.recorder import Recorder
 from hil.bag.run_info import RunInfo
 from hil.controllers.pid import PidGains
 from hil.controllers.symbolic import Controller, SymbolicProblem, Synthesizer, wait_index
+from hil.core.arrays import FloatArray
+from hil.core.clock import NS_PER_S
 from hil.core.codec import from_jsonable, to_jsonable
 from hil.core.motion import displacements_m
 from hil.core.samples import ObstacleLayout
@@ -52,9 +53,6 @@ from hil.runtime.trace import MemoryLog
 from hil.scenarios import Scenario, load_scenario
 from hil.sim.plant import TR_ETA, TR_NU
 from hil.sim.sensors import PoseSensorConfig
-
-FloatArray = NDArray[np.float64]
-NS_PER_S = 1_000_000_000
 
 
 @dataclass(frozen=True)

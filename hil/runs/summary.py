@@ -14,16 +14,14 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import NDArray
 from rich.console import Console
 from rich.table import Table
 
+from hil.core.arrays import FloatArray
 from hil.core.tracking import TrackingSeries, for_display, tracking_error
 from hil.runs.clearance import hull_clearance_series
 from hil.runtime.stats import RunStats
 from hil.scenarios import Scenario
-
-FloatArray = NDArray[np.float64]
 
 PAPER_TRACKING_ERROR = (0.00768, 0.00431, 0.62108)
 """The paper's tank figures: surge m/s, sway m/s, yaw deg/s (labelled MSE there)."""

@@ -12,7 +12,6 @@ from collections.abc import Iterator
 from dataclasses import dataclass, replace
 
 import numpy as np
-from numpy.typing import NDArray
 
 from hil.controllers.consistency import ConsistencyBreach, ConsistencyLimits, ConsistencyWatch
 from hil.controllers.low_level import LowLevelController, LowLevelParams
@@ -27,14 +26,12 @@ from hil.controllers.symbolic import (
     Watch,
     cost,
 )
+from hil.core.arrays import FloatArray, IntArray
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
 from hil.core.shapes import Rect
 from hil.runtime.resynthesis import VesselState
 from hil.runtime.stack import DecisionQuery, LowLevelOutput
 from hil.scenarios import Obstacle, Scenario
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 # A gated yaw rate is not a broken sample (robot_localization drops it quietly), and an
 # IMU sample before the first pose has nothing to update yet.

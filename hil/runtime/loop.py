@@ -19,7 +19,6 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
-from numpy.typing import NDArray
 
 from hil.adapters.interfaces import (
     Clock,
@@ -30,6 +29,7 @@ from hil.adapters.interfaces import (
     ThrusterSinkError,
 )
 from hil.controllers.symbolic.selection import wait_index
+from hil.core.arrays import FloatArray
 from hil.core.records import Decision, EventLevel
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
 from hil.core.transient import LATE_S, START_PERIODS
@@ -40,8 +40,6 @@ from hil.runtime.resynthesis import Resynthesizer, SynthesisResult, VesselState
 from hil.runtime.settings import NS_PER_S, LoopConfig
 from hil.runtime.stack import LowLevel, Observer, RunLog, SymbolicController
 from hil.runtime.stats import RunStats
-
-FloatArray = NDArray[np.float64]
 
 
 class Mode(enum.Enum):

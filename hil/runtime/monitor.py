@@ -29,14 +29,12 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
 from hil.controllers.symbolic import DecisionContract
+from hil.core.arrays import FloatArray
 from hil.core.records import EventLevel
 from hil.runtime.events import EventCode
 from hil.runtime.settings import NS_PER_S
-
-FloatArray = NDArray[np.float64]
 
 __all__ = ["Monitor", "Violation"]
 

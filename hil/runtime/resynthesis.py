@@ -28,12 +28,8 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass, replace
 from typing import Generic, TypeVar
 
-import numpy as np
-from numpy.typing import NDArray
-
+from hil.core.arrays import FloatArray
 from hil.core.samples import ObstacleLayout
-
-FloatArray = NDArray[np.float64]
 
 ControllerT = TypeVar("ControllerT")
 

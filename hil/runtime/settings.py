@@ -5,9 +5,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from hil.core.clock import NS_PER_S
+
 __all__ = ["NS_PER_S", "LoopConfig"]
 
-NS_PER_S = 1_000_000_000
 
 
 @dataclass(frozen=True, slots=True)

@@ -11,16 +11,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Protocol
 
-import numpy as np
-from numpy.typing import NDArray
-
 from hil.controllers.consistency import ConsistencyBreach
 from hil.controllers.symbolic import DecisionContract
+from hil.core.arrays import FloatArray, IntArray
 from hil.core.records import Decision, EventLevel
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 
 class Observer(Protocol):

@@ -4,12 +4,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-import numpy as np
-from numpy.typing import NDArray
+from hil.core.arrays import FloatArray
 
 __all__ = ["RunStats"]
 
-FloatArray = NDArray[np.float64]
 
 
 @dataclass

@@ -10,12 +10,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import NDArray
 
+from hil.core.arrays import FloatArray
 from hil.core.records import Decision, EventLevel
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass

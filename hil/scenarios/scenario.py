@@ -15,14 +15,12 @@ import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from numpy.typing import NDArray
 
+from hil.core.arrays import FloatArray
 from hil.core.motion import ObstacleMotion
 from hil.core.shapes import Polygon, Rect, Shape, convex_distance_m, shapes_overlap
 from hil.core.transient import LATE_S, TransientBudget, horizon_bins
 from hil.scenarios.errors import ScenarioError
-
-FloatArray = NDArray[np.float64]
 
 __all__ = [
     "Hull",

@@ -27,7 +27,6 @@ import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from numpy.typing import NDArray
 
 from hil.controllers.allocation import MmaConfig
 from hil.controllers.low_level import (
@@ -40,6 +39,7 @@ from hil.controllers.observer import ObserverConfig
 from hil.controllers.observer_arrays import EkfArrays
 from hil.controllers.observer_kernels import obs_imu, obs_init, obs_pose
 from hil.controllers.pid import DEFAULT_GAINS, PidGains
+from hil.core.arrays import BoolArray, FloatArray
 from hil.core.jit import njit
 from hil.model.coefficients import ENTERPRISE_I, VesselParams
 from hil.model.dynamics import Integrator, acceleration
@@ -67,9 +67,6 @@ from hil.sim.sensors import (
     pose_noise_series,
     pose_sensor_step,
 )
-
-FloatArray = NDArray[np.float64]
-BoolArray = NDArray[np.bool_]
 
 
 @dataclass(frozen=True)

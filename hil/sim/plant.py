@@ -9,14 +9,10 @@ environmental load, and the hull integrates over `dt`.
 
 from __future__ import annotations
 
-import numpy as np
-from numpy.typing import NDArray
-
+from hil.core.arrays import FloatArray
 from hil.core.jit import njit
 from hil.model.dynamics import acceleration, euler_advance, integrate_step
 from hil.model.thrusters import throttle_for_slew, thruster_force, thruster_update
-
-FloatArray = NDArray[np.float64]
 
 # Layout of a plant state row: pose, velocity, applied commands, azimuth angles.
 P_ETA = 0

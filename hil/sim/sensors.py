@@ -34,15 +34,12 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
-from numpy.typing import NDArray
 
+from hil.core.arrays import BoolArray, FloatArray
 from hil.core.geometry import wrap_angle
 from hil.core.jit import njit
 from hil.core.samples import Frame, ImuSample, PoseSample
 from hil.model.errors import SimError, StateShapeError
-
-FloatArray = NDArray[np.float64]
-BoolArray = NDArray[np.bool_]
 
 __all__ = [
     "ImuNoise",

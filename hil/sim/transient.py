@@ -72,9 +72,9 @@ import time
 from dataclasses import dataclass, replace
 
 import numpy as np
-from numpy.typing import NDArray
 
 from hil.controllers.symbolic.abstraction import displacement
+from hil.core.arrays import FloatArray, IntArray
 from hil.core.geometry import wrap_angles
 from hil.core.transient import (
     LATE_S,
@@ -87,9 +87,6 @@ from hil.core.transient import (
 from hil.scenarios import Scenario
 from hil.sim.closed_loop import ClosedLoopResult, LowLevelConfig, simulate_closed_loop
 from hil.sim.errors import ClosedLoopConfigError
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 __all__ = [
     "CLASS_NAMES",

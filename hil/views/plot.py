@@ -25,11 +25,10 @@ from matplotlib.patches import Polygon as PolygonPatch
 from numpy.typing import NDArray
 
 from hil.bag.run_data import RunData
+from hil.core.arrays import FloatArray
 from hil.core.tracking import for_display
 from hil.scenarios import Hull, Scenario, hull_footprint
 from hil.views.controller_view import inflated_outlines
-
-FloatArray = NDArray[np.float64]
 
 FIGURE_SIZE_IN = (13.0, 6.5)
 """Figure size (width, height) in inches; the PNG is this times the dpi, in pixels."""

@@ -6,9 +6,9 @@ from pathlib import Path
 
 import numpy as np
 import rerun as rr
-from numpy.typing import NDArray
 
 from hil.bag.run_data import Layout, synthesis_time
+from hil.core.arrays import FloatArray
 from hil.core.geometry import yaw_quaternions
 from hil.core.records import Decision, Event, EventLevel
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
@@ -31,8 +31,6 @@ from hil.views.rerun_style import (
     rectangle_xy,
 )
 from hil.views.rerun_world import log_arena, log_hull
-
-FloatArray = NDArray[np.float64]
 
 
 class LiveRerunLog:

@@ -17,6 +17,8 @@ import rerun as rr
 from numpy.typing import NDArray
 
 from hil.bag.run_data import RunData, Series
+from hil.core.arrays import FloatArray
+from hil.core.clock import NS_PER_S
 from hil.core.timeline import in_force
 from hil.core.transient import TransientBudget
 from hil.replay.intervals import budget_class, envelope_bound
@@ -27,8 +29,6 @@ from hil.views.rerun_style import (
     send_scalars,
     time_column,
 )
-
-FloatArray = NDArray[np.float64]
 
 
 def log_velocity(rec: rr.RecordingStream, run: RunData) -> int:
@@ -41,7 +41,6 @@ def log_velocity(rec: rr.RecordingStream, run: RunData) -> int:
     return rows
 
 
-NS_PER_S = 1_000_000_000
 
 
 def envelope_band(run: RunData, budget: TransientBudget, t_ns: NDArray[np.int64]) -> FloatArray:

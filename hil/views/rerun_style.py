@@ -16,10 +16,9 @@ import rerun as rr
 from numpy.typing import NDArray
 
 from hil.bag.run_data import Series
+from hil.core.arrays import FloatArray
 from hil.core.records import Decision, EventLevel
 from hil.views.controller_view import predicted_arcs
-
-FloatArray = NDArray[np.float64]
 
 TIMELINE = "run_time"
 """The run clock (duration since the run started)."""

@@ -15,6 +15,7 @@ import rerun as rr
 from numpy.typing import NDArray
 
 from hil.bag.run_data import RunData, Series
+from hil.core.arrays import FloatArray
 from hil.core.geometry import yaw_quaternions
 from hil.core.records import Decision
 from hil.scenarios import Hull, Scenario
@@ -31,7 +32,6 @@ from hil.views.rerun_style import (
     time_column,
 )
 
-FloatArray = NDArray[np.float64]
 _Z_GRID = -0.02  # the winning set lies just under the arena lines
 
 

@@ -48,13 +48,13 @@ from hil.controllers.observer_math import (
     P_R_PSI,
     P_R_X,
     P_R_Y,
-    FloatArray,
     ekf_predict,
     ekf_update_pose,
     ekf_update_yaw_rate,
     pose_innovation,
 )
 from hil.controllers.observer_ring import M_GATED_RUN
+from hil.core.arrays import FloatArray
 from hil.core.samples import Frame, ImuSample, PoseSample
 
 DT = 0.01

@@ -50,5 +50,6 @@ def test_a_stream_decodes_row_by_row_and_gives_back_what_was_encoded() -> None:
     np.testing.assert_allclose(np.cos(got_angle[moving] - angle[moving]), 1.0, atol=1e-12)
     previous = math.pi / 2
     for k in range(300):  # the stream's rule is the scalar rule, row by row
-        assert (got_thrust[k], got_angle[k]) == azimuth_command(*forces[k], previous)
+        fx, fy = float(forces[k, 0]), float(forces[k, 1])
+        assert (got_thrust[k], got_angle[k]) == azimuth_command(fx, fy, previous)
         previous = got_angle[k]

@@ -55,9 +55,9 @@ from numpy.typing import NDArray
 
 from hil.controllers.symbolic.errors import GridError
 from hil.controllers.symbolic.grid import Grid
+from hil.core.arrays import FloatArray
 
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int32]
+I32Array = NDArray[np.int32]
 
 __all__ = [
     "Tables",
@@ -150,13 +150,13 @@ class Tables:
     inputs: FloatArray
     tau_s: float
     late_s: float
-    succ: IntArray
-    heading: IntArray
-    tube_x0: IntArray
-    tube_n: IntArray
-    tube_y: IntArray
+    succ: I32Array
+    heading: I32Array
+    tube_x0: I32Array
+    tube_n: I32Array
+    tube_y: I32Array
     hull_psi: FloatArray
-    yaw_index: IntArray
+    yaw_index: I32Array
     budget_key: str
     key: str
 
@@ -180,11 +180,11 @@ class Tables:
             )
         )
 
-    def hull_range_index(self) -> IntArray:
+    def hull_range_index(self) -> I32Array:
         """Return each (c, k, input)'s row of ``hull_psi.reshape(-1, 2)``, shape (3, npsi, m)."""
         n_cls, npsi, n_yaw, _ = self.hull_psi.shape
         base = (np.arange(n_cls)[:, None] * npsi + np.arange(npsi)[None, :]) * n_yaw
-        out: IntArray = (base[:, :, None] + self.yaw_index[None, None, :]).astype(np.int32)
+        out: I32Array = (base[:, :, None] + self.yaw_index[None, None, :]).astype(np.int32)
         return out
 
 
@@ -246,7 +246,7 @@ def _arc_boxes(d: FloatArray, psi_lo: FloatArray, psi_hi: FloatArray) -> FloatAr
     return np.stack([rho * cmin, rho * cmax, rho * smin, rho * smax], axis=-1)
 
 
-def _offsets(lo: FloatArray, hi: FloatArray, width: float) -> tuple[IntArray, IntArray]:
+def _offsets(lo: FloatArray, hi: FloatArray, width: float) -> tuple[I32Array, I32Array]:
     return (
         np.floor(lo / width + _SNAP).astype(np.int32),
         np.ceil(hi / width - _SNAP).astype(np.int32),
@@ -258,7 +258,7 @@ def _contains_angle(lo: FloatArray, hi: FloatArray, angle: float) -> NDArray[np.
     return np.asarray(np.ceil((lo - angle) / math.pi) * math.pi + angle <= hi, dtype=bool)
 
 
-def _heading_offsets(shift_cells: FloatArray, lower: bool) -> IntArray:
+def _heading_offsets(shift_cells: FloatArray, lower: bool) -> I32Array:
     # A shift that is an integer up to rounding moves the cell onto cells exactly.
     nearest = np.round(shift_cells)
     exact = np.abs(shift_cells - nearest) < 1e-9
@@ -288,11 +288,11 @@ def _check_inputs(inputs: FloatArray, tau_s: float, late_s: float) -> FloatArray
 
 @dataclass(frozen=True, slots=True)
 class _ClassTables:
-    succ: IntArray  # (npsi, m, 4)
-    heading: IntArray  # (m, 2)
-    tube_x0: IntArray  # (npsi, m)
-    tube_n: IntArray  # (npsi, m)
-    tube_y: IntArray  # (npsi, m, c, 2)
+    succ: I32Array  # (npsi, m, 4)
+    heading: I32Array  # (m, 2)
+    tube_x0: I32Array  # (npsi, m)
+    tube_n: I32Array  # (npsi, m)
+    tube_y: I32Array  # (npsi, m, c, 2)
     hull_psi: FloatArray  # (npsi, n_yaw, 2)
 
 

@@ -31,10 +31,7 @@ from numpy.typing import NDArray
 from hil.controllers.symbolic.controller import Controller
 from hil.controllers.symbolic.errors import SymbolicError
 from hil.controllers.symbolic.grid import Grid
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
-BoolArray = NDArray[np.bool_]
+from hil.core.arrays import BoolArray, FloatArray, IntArray
 
 __all__ = ["DecisionContract", "cells_of"]
 

@@ -29,11 +29,9 @@ from hil.controllers.symbolic.kernels import (
     staying_input_indices,
 )
 from hil.controllers.symbolic.lattice import InputLattice
+from hil.core.arrays import BoolArray, FloatArray, U64Array
 
-FloatArray = NDArray[np.float64]
-BoolArray = NDArray[np.bool_]
 I32Array = NDArray[np.int32]
-U64Array = NDArray[np.uint64]
 
 __all__ = ["CellDecision", "Controller", "SynthesisStats"]
 

@@ -15,15 +15,12 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
 from hil.controllers.symbolic.errors import GridError
+from hil.core.arrays import BoolArray, FloatArray
 from hil.core.geometry import wrap_angle
 from hil.core.shapes import Polygon, Rect, Shape
 from hil.scenarios import Scenario
-
-FloatArray = NDArray[np.float64]
-BoolArray = NDArray[np.bool_]
 
 __all__ = ["Grid", "obstacle_mask", "target_mask"]
 

@@ -51,12 +51,11 @@ from hil.controllers.symbolic.grid import (
     _polygon_halfplanes,
     obstacle_mask,
 )
+from hil.core.arrays import BoolArray, FloatArray
 from hil.core.jit import njit
 from hil.core.shapes import Polygon, Rect, Shape
 
-FloatArray = NDArray[np.float64]
-BoolArray = NDArray[np.bool_]
-IntArray = NDArray[np.intp]
+IntpArray = NDArray[np.intp]
 
 __all__ = ["free_masks", "hull_half_extents", "target_cells"]
 
@@ -150,21 +149,21 @@ def hull_half_extents(
     return ex, ey
 
 
-def _first_at_least(edges: FloatArray, bound: FloatArray) -> IntArray:
+def _first_at_least(edges: FloatArray, bound: FloatArray) -> IntpArray:
     """Return, per bound, the first index i with edges[i] >= bound (len(edges) if none)."""
-    out: IntArray = np.searchsorted(edges, bound, side="left")
+    out: IntpArray = np.searchsorted(edges, bound, side="left")
     return out
 
 
-def _count_at_most(edges: FloatArray, bound: FloatArray) -> IntArray:
+def _count_at_most(edges: FloatArray, bound: FloatArray) -> IntpArray:
     """Return, per bound, how many edges are <= bound (edges ascending)."""
-    out: IntArray = np.searchsorted(edges, bound, side="right")
+    out: IntpArray = np.searchsorted(edges, bound, side="right")
     return out
 
 
 def _blocked_span(
     edges: FloatArray, lo_m: float, hi_m: float, grow_m: FloatArray
-) -> tuple[IntArray, IntArray]:
+) -> tuple[IntpArray, IntpArray]:
     """Return cells [start, stop) per range whose closed extent meets [lo - grow, hi + grow].
 
     `edges` are the cell edges (nc + 1,); cell i spans [edges[i], edges[i + 1]]. A cell

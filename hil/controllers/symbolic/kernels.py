@@ -11,11 +11,10 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from hil.core.arrays import BoolArray, U64Array
 from hil.core.jit import njit
 
-U64Array = NDArray[np.uint64]
 I32Array = NDArray[np.int32]
-BoolArray = NDArray[np.bool_]
 
 __all__ = [
     "first_decision_cells",

@@ -16,8 +16,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hil.controllers.symbolic.errors import GridError
+from hil.core.arrays import FloatArray
 
-FloatArray = NDArray[np.float64]
 I32Array = NDArray[np.int32]
 
 __all__ = ["InputLattice"]

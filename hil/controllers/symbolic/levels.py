@@ -22,8 +22,8 @@ from hil.controllers.symbolic.planes_kernel import (
     solve_serial,
     transpose_viable,
 )
+from hil.core.arrays import U64Array
 
-U64Array = NDArray[np.uint64]
 I32Array = NDArray[np.int32]
 
 __all__ = ["LevelSolver"]

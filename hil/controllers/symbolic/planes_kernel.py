@@ -46,9 +46,9 @@ from numba import prange
 from numpy.typing import NDArray
 
 from hil.controllers.symbolic.sweep import shifted
+from hil.core.arrays import U64Array
 from hil.core.jit import njit, njit_parallel
 
-U64Array = NDArray[np.uint64]
 I32Array = NDArray[np.int32]
 
 __all__ = [

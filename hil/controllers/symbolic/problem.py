@@ -7,17 +7,14 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import NDArray
 
 from hil.controllers.symbolic.abstraction import Tables, tables_for
 from hil.controllers.symbolic.grid import Grid, obstacle_mask, target_mask
 from hil.controllers.symbolic.hull import free_masks
+from hil.core.arrays import BoolArray, FloatArray
 from hil.core.shapes import Rect, Shape
 from hil.core.transient import LATE_S, TransientBudget
 from hil.scenarios import Scenario
-
-FloatArray = NDArray[np.float64]
-BoolArray = NDArray[np.bool_]
 
 __all__ = ["SymbolicProblem"]
 

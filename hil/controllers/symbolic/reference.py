@@ -15,8 +15,8 @@ from numpy.typing import NDArray
 
 from hil.controllers.symbolic.abstraction import Tables
 from hil.controllers.symbolic.lattice import InputLattice
+from hil.core.arrays import BoolArray
 
-BoolArray = NDArray[np.bool_]
 I32Array = NDArray[np.int32]
 
 __all__ = ["dense_fixed_point", "dense_tube_free"]

@@ -24,8 +24,8 @@ from hil.controllers.symbolic.safety_kernel import (
     safety_iterate_parallel,
     safety_iterate_serial,
 )
+from hil.core.arrays import U64Array
 
-U64Array = NDArray[np.uint64]
 I32Array = NDArray[np.int32]
 
 __all__ = ["MAX_SAFETY_ITERATIONS", "SafeSet", "solve_safe_set"]

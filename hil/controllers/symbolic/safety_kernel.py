@@ -32,9 +32,9 @@ from numba import prange
 from numpy.typing import NDArray
 
 from hil.controllers.symbolic.planes_kernel import box_test, changed_band
+from hil.core.arrays import U64Array
 from hil.core.jit import njit, njit_parallel
 
-U64Array = NDArray[np.uint64]
 I32Array = NDArray[np.int32]
 
 __all__ = ["init_safety_state", "safety_iterate_parallel", "safety_iterate_serial"]

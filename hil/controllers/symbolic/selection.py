@@ -9,11 +9,9 @@ Backward motion is penalized, sway discouraged and yaw-rate changes smoothed.
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
 
 from hil.controllers.symbolic.errors import EmptyInputSetError
-
-FloatArray = NDArray[np.float64]
+from hil.core.arrays import FloatArray
 
 __all__ = ["W_BACKWARD", "W_FORWARD", "cost", "select", "wait_index"]
 

@@ -49,6 +49,8 @@ import numpy as np
 import zstandard
 from numpy.typing import NDArray
 
+from hil.core.arrays import BoolArray, U64Array
+
 __all__ = [
     "BUDGET_ENV",
     "DEFAULT_BUDGET_MB",
@@ -59,8 +61,6 @@ __all__ = [
     "solver_digest",
 ]
 
-BoolArray = NDArray[np.bool_]
-U64Array = NDArray[np.uint64]
 
 FORMAT_VERSION = 3
 """Layout of a file (header, arrays, checksum); a file of another version is deleted."""

@@ -41,9 +41,9 @@ import numpy as np
 from numba import prange
 from numpy.typing import NDArray
 
+from hil.core.arrays import U64Array
 from hil.core.jit import njit, njit_parallel
 
-U64Array = NDArray[np.uint64]
 I32Array = NDArray[np.int32]
 U8Array = NDArray[np.uint8]
 

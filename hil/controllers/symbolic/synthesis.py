@@ -37,12 +37,11 @@ from hil.controllers.symbolic.sweep import (
     start_levels,
     viable_words,
 )
+from hil.core.arrays import BoolArray, U64Array
 from hil.core.jit import njit
 from hil.core.memory import require_bytes
 
-BoolArray = NDArray[np.bool_]
 I32Array = NDArray[np.int32]
-U64Array = NDArray[np.uint64]
 
 __all__ = ["KERNELS", "N_PLANES", "Synthesizer", "Watch", "synthesize"]
 
