@@ -260,10 +260,7 @@ class Runtime:
             if self._ready_to_decide(t_ns):
                 for violation in self.monitor.at_decision(t_ns, eta_hat):
                     self._violation(t_ns, violation)
-                self._decide(t_ns, eta_hat, nu_hat)
-                self._next_decision_ns = t_ns + round(self.config.decision_period_s * NS_PER_S)
-                if self._abort is not None:
-                    self._stop_after_decision(t_ns, eta_hat, nu_hat)
+                if self._decide_or_stop(t_ns, eta_hat, nu_hat):
                     return
         else:
             exit_ = self.monitor.tick(t_ns, eta_hat)
@@ -272,14 +269,10 @@ class Runtime:
                 # decision from the estimated velocity, now.
                 self._violation(t_ns, exit_)
                 self._reference_index = None
-                if self._ready_to_decide(t_ns):
-                    self._decide(t_ns, eta_hat, nu_hat)
-                    self._next_decision_ns = t_ns + round(self.config.decision_period_s * NS_PER_S)
-                    if self._abort is not None:
-                        self._stop_after_decision(t_ns, eta_hat, nu_hat)
-                        return
-                else:
+                if not self._ready_to_decide(t_ns):
                     self._next_decision_ns = t_ns  # decide once a fresher report is in
+                elif self._decide_or_stop(t_ns, eta_hat, nu_hat):
+                    return
         if self.mode is Mode.WAITING:
             self._send(ThrusterCommand.zero(t_ns))
             return
@@ -659,6 +652,18 @@ class Runtime:
         self.stats.eta_hat.append(eta_hat)
         self.stats.nu_hat.append(nu_hat)
         self.stats.nu_ref.append(self._nu_ref.copy())
+
+    def _decide_or_stop(self, t_ns: int, eta_hat: FloatArray, nu_hat: FloatArray) -> bool:
+        """Decide now and schedule the next decision; return True when the decision aborted.
+
+        An abort brakes from this tick on, this tick's command included.
+        """
+        self._decide(t_ns, eta_hat, nu_hat)
+        self._next_decision_ns = t_ns + round(self.config.decision_period_s * NS_PER_S)
+        if self._abort is None:
+            return False
+        self._stop_after_decision(t_ns, eta_hat, nu_hat)
+        return True
 
     def _stop_after_decision(self, t_ns: int, eta_hat: FloatArray, nu_hat: FloatArray) -> None:
         """Abort after a decision of this tick: braking starts now, this tick's command too."""
