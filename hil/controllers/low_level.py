@@ -69,6 +69,9 @@ class AllocatorKind(enum.IntEnum):
     MIN_MAGNITUDE_AZIMUTH = 1
 
 
+_MMA = int(AllocatorKind.MIN_MAGNITUDE_AZIMUTH)  # a plain int: a constant in the kernel
+
+
 class LowLevelArrays(NamedTuple):
     """The constant inputs of :func:`low_level_tick`; numba passes it as a tuple.
 
@@ -140,7 +143,7 @@ def low_level_tick(
     tau, tau_raw, s_pid = pid_command(
         a.g, a.m, a.coef, state[L_PID : L_PID + N_PID_STATE], nu_ref, nu_hat, a.dt
     )
-    if a.kind == 1:
+    if a.kind == _MMA:
         u, alpha, _, theta_new = mma_allocate(
             a.tp, a.be, a.b_pinv, a.q, theta, tau, a_now, a.acfg, a.a_ref, a.aw, a.wq
         )

@@ -11,8 +11,10 @@ from __future__ import annotations
 
 from hil.core.arrays import FloatArray
 from hil.core.jit import njit
-from hil.model.dynamics import acceleration, euler_advance, integrate_step
+from hil.model.dynamics import Integrator, acceleration, euler_advance, integrate_step
 from hil.model.thrusters import throttle_for_slew, thruster_force, thruster_update
+
+_EULER = int(Integrator.EULER)  # a plain int: numba compiles the comparison as a constant
 
 # Layout of a plant state row: pose, velocity, applied commands, azimuth angles.
 P_ETA = 0
@@ -71,7 +73,7 @@ def plant_step(
     trace_row[TR_NU : TR_NU + 3] = nu
     trace_row[TR_NU_DOT : TR_NU_DOT + 3] = nu_dot
     trace_row[TR_TAU : TR_TAU + 3] = tau
-    if method == 0:  # Integrator.EULER: reuse the accelerometer's nu_dot
+    if method == _EULER:  # reuse the accelerometer's nu_dot
         eta_new, nu_new = euler_advance(eta, nu, nu_dot, dt)
     else:
         eta_new, nu_new = integrate_step(m_inv, coef, eta, nu, force, dt, method)
