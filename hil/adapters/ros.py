@@ -216,7 +216,7 @@ def thruster_command_from_components(
     )
 
 
-class _Inbox:
+class _SubscriptionQueue:
     """A thread-safe queue of samples from a subscription callback, with counters."""
 
     def __init__(self, maxlen: int = 10_000) -> None:
@@ -244,7 +244,7 @@ class _Inbox:
 class RosPoseSource:
     """Pose samples from the mocap topic, mapped to the arena frame."""
 
-    def __init__(self, inbox: _Inbox) -> None:
+    def __init__(self, inbox: _SubscriptionQueue) -> None:
         self._inbox = inbox
 
     @property
@@ -264,7 +264,7 @@ class RosPoseSource:
 class RosImuSource:
     """IMU samples from the IMU topic."""
 
-    def __init__(self, inbox: _Inbox) -> None:
+    def __init__(self, inbox: _SubscriptionQueue) -> None:
         self._inbox = inbox
 
     @property
@@ -443,8 +443,8 @@ class RosWorld:
         self.obstacle_source: RosObstacleSource | None = None
         if self.config.topics.obstacles and obstacles is not None:
             self.obstacle_source = RosObstacleSource(obstacles, self.config.transform, min_move_m)
-        self._pose_inbox = _Inbox()
-        self._imu_inbox = _Inbox()
+        self._pose_inbox = _SubscriptionQueue()
+        self._imu_inbox = _SubscriptionQueue()
         self._context: Any = None
         self._node: Any = None
         self._executor: Any = None

@@ -122,7 +122,7 @@ class SimConfig:
                              f"got {self.obstacle_report_period_s!r}")
 
 
-class _Inbox:
+class _PendingSamples:
     """Samples produced by the world and not yet polled by the stack."""
 
     def __init__(self) -> None:
@@ -133,7 +133,7 @@ class _Inbox:
 class SimPoseSource:
     """Pose samples from the simulated motion-capture system."""
 
-    def __init__(self, inbox: _Inbox) -> None:
+    def __init__(self, inbox: _PendingSamples) -> None:
         self._inbox = inbox
 
     def poll(self) -> list[PoseSample]:
@@ -145,7 +145,7 @@ class SimPoseSource:
 class SimImuSource:
     """IMU samples from the simulated IMU."""
 
-    def __init__(self, inbox: _Inbox) -> None:
+    def __init__(self, inbox: _PendingSamples) -> None:
         self._inbox = inbox
 
     def poll(self) -> list[ImuSample]:
@@ -231,7 +231,7 @@ class SimWorld:
         seeds = np.random.SeedSequence(config.seed).generate_state(2)
         self._pose_sensor = SimulatedPoseSensor(config.pose, seed=int(seeds[0]))
         self._imu = SimulatedImu(config.imu, seed=int(seeds[1]))
-        self._inbox = _Inbox()
+        self._inbox = _PendingSamples()
         self._truth: list[FloatArray] = []
         stalls = tuple(
             (round(a * NS_PER_S), round((a + d) * NS_PER_S)) for a, d in config.loop_stalls_s
