@@ -385,7 +385,7 @@ class Recorder:
             pass
         self._check_open()
 
-    # The runtime's RunLog interface (hil.runtime.stack.RunLog), one method per stream.
+    # The runtime's RunLog interface (hil.runtime.protocols.RunLog), one method per stream.
     def pose(self, sample: PoseSample) -> None:
         """Record a pose sample as received."""
         self.record(sample)

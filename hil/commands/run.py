@@ -26,7 +26,7 @@ from hil.commands.common import (
 
 if TYPE_CHECKING:
     from hil.runs.sim_run import LiveView
-    from hil.runtime.stack import RunLog
+    from hil.runtime.protocols import RunLog
     from hil.scenarios import Scenario
 
 HELP = "dock the vessel in simulation (or over ROS 2), record the run and summarize it"

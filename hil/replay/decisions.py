@@ -49,8 +49,8 @@ from hil.core.samples import ObstacleLayout
 from hil.replay.controllers import ControllerCache
 from hil.replay.regression import Check, Finding, Status, time_s
 from hil.runtime.assembly import SymbolicAdapter, select_index
+from hil.runtime.protocols import SymbolicController
 from hil.runtime.settings import NS_PER_S
-from hil.runtime.stack import SymbolicController
 
 _READY = re.compile(r"controller v(\d+)\b")
 ROW_TOLERANCE = 1e-9

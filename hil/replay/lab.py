@@ -43,7 +43,7 @@ from hil.replay.controllers import ControllerCache
 from hil.replay.intervals import check_contract, judge_intervals
 from hil.replay.options import ReplayOptions
 from hil.replay.regression import Check, Finding, Interval, Status, time_s
-from hil.replay.stack import Rerun, rerun_stack
+from hil.replay.stack_rerun import Rerun, rerun_stack
 from hil.replay.tracking_checks import check_tracking
 from hil.runs.vessel_run import VesselConfig
 from hil.runtime.assembly import layout_from_scenario

@@ -55,7 +55,7 @@ from hil.replay.lab import NOT_JUDGED, lab_topics, replay_lab, require_pose
 from hil.replay.options import ReplayOptions
 from hil.replay.regression import Interval, LogReport
 from hil.replay.resim import check_resim
-from hil.replay.stack import check_stack
+from hil.replay.stack_rerun import check_stack
 from hil.replay.stop_check import check_stop
 from hil.replay.tracking_checks import check_tracking
 from hil.scenarios import ScenarioError

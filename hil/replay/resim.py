@@ -23,7 +23,7 @@ from hil.replay.controllers import ControllerCache, ScenarioMismatchError
 from hil.replay.decisions import BOUNDARY, TIE, compare_rerun_decisions
 from hil.replay.options import Tolerance
 from hil.replay.regression import Check, Finding, Status, time_s
-from hil.replay.stack import compared_until, divergence_note, tracking_of, until
+from hil.replay.stack_rerun import compared_until, divergence_note, tracking_of, until
 from hil.replay.tracking_checks import tracking_findings
 from hil.runs.sim_run import SimRunSpec, run_in_sim, spec_from_json
 from hil.runtime.settings import LoopConfig

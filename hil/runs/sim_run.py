@@ -43,11 +43,11 @@ from hil.runtime.assembly import (
 )
 from hil.runtime.controller_lru import ControllerLru
 from hil.runtime.loop import Runtime, World
+from hil.runtime.protocols import RunLog, SymbolicController
 from hil.runtime.report_age import ReportAgeBudget
 from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer, Solve
 from hil.runtime.settings import LoopConfig
 from hil.runtime.signals import stop_on_signals
-from hil.runtime.stack import RunLog, SymbolicController
 from hil.runtime.stats import RunStats
 from hil.runtime.trace import MemoryLog
 from hil.scenarios import Scenario, load_scenario

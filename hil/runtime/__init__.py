@@ -3,7 +3,7 @@
 :mod:`hil.runtime.loop` runs observer, symbolic decisions, low level and recording at a
 fixed rate against a :class:`~hil.runtime.loop.World` of adapters, with the settings
 of :mod:`hil.runtime.settings` and counting into :mod:`hil.runtime.stats`;
-:mod:`hil.runtime.stack` declares the components it calls, :mod:`hil.runtime.assembly`
+:mod:`hil.runtime.protocols` declares the components it calls, :mod:`hil.runtime.assembly`
 wires the real ones, :mod:`hil.runtime.resynthesis` re-synthesizes beside the loop.
 May import adapters, bag, sim, controllers, model, scenarios and core; the runs build
 on it.

@@ -2,7 +2,7 @@
 
 The observer (EKF), the velocity PID with thrust allocation, and the symbolic
 controller with its re-synthesis each get a thin adapter here, so the loop in
-:mod:`hil.runtime.loop` sees only :mod:`hil.runtime.stack`'s protocols.
+:mod:`hil.runtime.loop` sees only :mod:`hil.runtime.protocols`'s protocols.
 """
 
 from __future__ import annotations
@@ -29,8 +29,8 @@ from hil.controllers.symbolic import (
 from hil.core.arrays import FloatArray, IntArray
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
 from hil.core.shapes import Rect
+from hil.runtime.protocols import DecisionQuery, LowLevelOutput
 from hil.runtime.resynthesis import VesselState
-from hil.runtime.stack import DecisionQuery, LowLevelOutput
 from hil.scenarios import Obstacle, Scenario
 
 # A gated yaw rate is not a broken sample (robot_localization drops it quietly), and an
@@ -40,7 +40,7 @@ _POSE_ACCEPTED = {ObserverStatus.FUSED, ObserverStatus.RESET}
 
 
 class EkfObserver:
-    """The EKF behind the runtime's :class:`~hil.runtime.stack.Observer` protocol.
+    """The EKF behind the runtime's :class:`~hil.runtime.protocols.Observer` protocol.
 
     Args:
         ekf: The filter; a default one if None.

@@ -35,10 +35,10 @@ from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterComm
 from hil.core.transient import LATE_S, START_PERIODS
 from hil.runtime.events import EventCode
 from hil.runtime.monitor import Monitor, Violation
+from hil.runtime.protocols import LowLevel, Observer, RunLog, SymbolicController
 from hil.runtime.report_age import ReportAgeBudget
 from hil.runtime.resynthesis import Resynthesizer, SynthesisResult, VesselState
 from hil.runtime.settings import NS_PER_S, LoopConfig
-from hil.runtime.stack import LowLevel, Observer, RunLog, SymbolicController
 from hil.runtime.stats import RunStats
 
 

@@ -1,6 +1,6 @@
 """An in-memory run log: everything the runtime records, kept as Python lists.
 
-It implements :class:`hil.runtime.stack.RunLog` for runs that need no bag
+It implements :class:`hil.runtime.protocols.RunLog` for runs that need no bag
 (Monte Carlo campaigns, tests) and is the reference the bag recorder's round
 trip is compared with.
 """

@@ -14,7 +14,7 @@ from hil.core.records import Decision, Event, EventLevel
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
 from hil.core.tracking import tracking_error
 from hil.replay.intervals import budget_class, envelope_bound
-from hil.runtime.stack import RunLog
+from hil.runtime.protocols import RunLog
 from hil.scenarios import Scenario
 from hil.views.blueprint import blueprint
 from hil.views.controller_view import inflated_outlines

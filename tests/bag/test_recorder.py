@@ -268,7 +268,7 @@ def test_bulk_and_single_encoders_agree() -> None:
 
 
 def test_recorder_is_the_runtimes_run_log(tmp_path: Path) -> None:
-    from hil.runtime.stack import RunLog
+    from hil.runtime.protocols import RunLog
 
     log: RunLog = Recorder(tmp_path / "run", RUN)  # mypy checks the interface
     assert isinstance(log, Recorder)

@@ -19,7 +19,7 @@ from hil.replay.options import ReplayOptions
 from hil.replay.regression import Status
 from hil.replay.replayer import replay_log
 from hil.replay.stop_check import check_stop
-from hil.runtime.stack import RunLog
+from hil.runtime.protocols import RunLog
 from hil.scenarios import Scenario, load_scenario
 
 

@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hil.controllers.symbolic import DecisionContract
-from hil.runtime.stack import DecisionQuery
+from hil.runtime.protocols import DecisionQuery
 
 F = NDArray[np.float64]
 I64 = NDArray[np.int64]

@@ -23,6 +23,7 @@ from hil.core.samples import ObstacleLayout
 from hil.runs.sim_run import build_runtime, default_start, synthesizer_for
 from hil.runtime.assembly import SymbolicAdapter, layout_from_scenario
 from hil.runtime.loop import Runtime, World
+from hil.runtime.protocols import SymbolicController
 from hil.runtime.resynthesis import (
     ResynthesisMode,
     Resynthesizer,
@@ -30,7 +31,6 @@ from hil.runtime.resynthesis import (
     VesselState,
 )
 from hil.runtime.settings import NS_PER_S, LoopConfig
-from hil.runtime.stack import SymbolicController
 from hil.runtime.trace import MemoryLog
 from hil.scenarios import Scenario
 from hil.sim.sensors import PoseSensorConfig

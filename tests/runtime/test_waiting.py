@@ -20,9 +20,9 @@ from hil.core.samples import ObstacleLayout
 from hil.runtime.assembly import low_level_for
 from hil.runtime.events import EventCode
 from hil.runtime.loop import Runtime, World
+from hil.runtime.protocols import DecisionQuery
 from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer
 from hil.runtime.settings import LoopConfig
-from hil.runtime.stack import DecisionQuery
 from hil.runtime.trace import MemoryLog
 from tests.runtime.test_low_level_pin import START, TrueVelocity
 

@@ -45,7 +45,7 @@ import numpy as np
 from numba import prange
 from numpy.typing import NDArray
 
-from hil.controllers.symbolic.sweep import shifted
+from hil.controllers.symbolic.frontier_kernel import shifted
 from hil.core.arrays import U64Array
 from hil.core.jit import njit, njit_parallel
 

@@ -22,14 +22,7 @@ from numpy.typing import NDArray
 from hil.controllers.symbolic.abstraction import N_CLASSES, Tables
 from hil.controllers.symbolic.controller import Controller, SynthesisStats
 from hil.controllers.symbolic.errors import GridError, NoWinningSetError
-from hil.controllers.symbolic.kernels import pack_rows
-from hil.controllers.symbolic.lattice import InputLattice
-from hil.controllers.symbolic.levels import LevelSolver
-from hil.controllers.symbolic.planes_kernel import from_sweep_layout, nested_classes
-from hil.controllers.symbolic.problem import SymbolicProblem
-from hil.controllers.symbolic.safety import solve_safe_set
-from hil.controllers.symbolic.store import ControllerStore, SolvedLayout, solve_key
-from hil.controllers.symbolic.sweep import (
+from hil.controllers.symbolic.frontier_kernel import (
     advance_level_parallel,
     advance_level_serial,
     erode_free,
@@ -37,6 +30,13 @@ from hil.controllers.symbolic.sweep import (
     start_levels,
     viable_words,
 )
+from hil.controllers.symbolic.kernels import pack_rows
+from hil.controllers.symbolic.lattice import InputLattice
+from hil.controllers.symbolic.levels import LevelSolver
+from hil.controllers.symbolic.planes_kernel import from_sweep_layout, nested_classes
+from hil.controllers.symbolic.problem import SymbolicProblem
+from hil.controllers.symbolic.safety import solve_safe_set
+from hil.controllers.symbolic.store import ControllerStore, SolvedLayout, solve_key
 from hil.core.arrays import BoolArray, U64Array
 from hil.core.jit import njit
 from hil.core.memory import require_bytes

@@ -7,8 +7,8 @@ import pytest
 from numpy.typing import NDArray
 
 from hil.controllers.symbolic import Controller, SymbolicProblem
+from hil.controllers.symbolic.frontier_kernel import erode_free, init_layers, shifted, successor_run
 from hil.controllers.symbolic.kernels import layer_values, pack_rows, state_value, state_values
-from hil.controllers.symbolic.sweep import erode_free, init_layers, shifted, successor_run
 from tests.controllers.symbolic import tiny
 
 U64Array = NDArray[np.uint64]

@@ -1,6 +1,6 @@
 """The fast solver against the dense baseline and against the game's own equation.
 
-The game (sweep.py): from (cell, p) the controller may hold p (class-0 tables) or move
+The game (frontier_kernel.py): from (cell, p) the controller may hold p (class-0 tables) or move
 to a one-step neighbour u of p (class 1); the state's value is 0 in the target, else
 1 + the least, over those inputs with a free tube, of the largest value of the
 successor cells in layer u (-1, losing, when no input has all successors winning).
