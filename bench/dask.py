@@ -37,7 +37,8 @@ from hil.runs.campaign import (
 from hil.runs.dask_executor import DaskExecutor
 from hil.runs.executor import Executor, LocalExecutor
 from hil.runs.fanout import FanOut, fan_out
-from hil.runs.sim_run import SimRunSpec, synthesizer_for
+from hil.runs.sim_run import SimRunSpec
+from hil.runs.stack_assembly import synthesizer_for
 from hil.runtime.assembly import LayoutSolver, layout_from_scenario
 from hil.runtime.settings import LoopConfig
 from hil.scenarios import load_scenario

@@ -29,7 +29,8 @@ from pathlib import Path
 
 def _record(scenario: str, seed: int, out: Path) -> Path:
     from hil.commands.record_suite import SuiteRun, record_run
-    from hil.runs.sim_run import SimRunSpec, default_start
+    from hil.runs.sim_run import SimRunSpec
+    from hil.runs.stack_assembly import default_start
     from hil.runtime.settings import LoopConfig
     from hil.scenarios import load_scenario
 

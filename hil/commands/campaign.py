@@ -70,7 +70,8 @@ def run(args: argparse.Namespace) -> int:
     )
     from hil.runs.errors import ExecutorError
     from hil.runs.policies import policies_of
-    from hil.runs.sim_run import SimRunSpec, synthesizer_for
+    from hil.runs.sim_run import SimRunSpec
+    from hil.runs.stack_assembly import synthesizer_for
     from hil.runtime.assembly import LayoutSolver, layout_from_scenario
     from hil.runtime.settings import LoopConfig
     from hil.scenarios import ScenarioError, load_scenario

@@ -139,7 +139,8 @@ def record_run(run: SuiteRun, out_dir: Path) -> Path:
     """Simulate `run` and write its bag to ``out_dir / run.name``; return the bag path."""
     from hil.bag.recorder import RecorderConfig
     from hil.bag.run_info import RunInfo
-    from hil.runs.sim_run import run_in_sim, scenario_hash
+    from hil.runs.sim_run import run_in_sim
+    from hil.runs.stack_assembly import scenario_hash
     from hil.runtime.trace import MemoryLog
     from hil.scenarios import load_scenario
 

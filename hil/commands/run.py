@@ -83,7 +83,8 @@ def run(args: argparse.Namespace) -> int:
 
     from hil.bag.errors import ReplayError
     from hil.controllers.symbolic import SymbolicError
-    from hil.runs.sim_run import SimRunSpec, default_start, run_in_sim
+    from hil.runs.sim_run import SimRunSpec, run_in_sim
+    from hil.runs.stack_assembly import default_start
     from hil.runtime.settings import LoopConfig
     from hil.scenarios import ScenarioError, check_start, load_scenario
 

@@ -36,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
     from hil.adapters.ros import RosBackendError, RosConfig, check_domain_id
     from hil.adapters.sim import SimConfig, SimWorld
     from hil.runs.ros_vessel import SimVesselNode
-    from hil.runs.sim_run import default_start
+    from hil.runs.stack_assembly import default_start
     from hil.runtime.assembly import layout_from_scenario
     from hil.scenarios import ScenarioError, check_start, load_scenario
 

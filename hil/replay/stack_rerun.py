@@ -40,7 +40,8 @@ from hil.replay.decisions import BOUNDARY, TIE, Divergence, compare_rerun_decisi
 from hil.replay.options import ReplayOptions
 from hil.replay.regression import Check, Finding, Status, time_s
 from hil.replay.tracking_checks import tracking_findings
-from hil.runs.sim_run import build_runtime, spec_from_json
+from hil.runs.sim_run import spec_from_json
+from hil.runs.stack_assembly import build_runtime
 from hil.runtime.events import EventCode
 from hil.runtime.loop import Mode, World
 from hil.runtime.resynthesis import ResynthesisMode

@@ -24,28 +24,29 @@ from hil.adapters.sim import ObstacleMotion, SimConfig, SimWorld, ThrusterOutage
 from hil.bag.recorder import Recorder
 from hil.bag.run_info import RunInfo
 from hil.controllers.pid import PidGains
-from hil.controllers.symbolic import Controller, SymbolicProblem, Synthesizer, wait_index
-from hil.core.arrays import FloatArray
+from hil.controllers.symbolic import Controller, wait_index
 from hil.core.clock import NS_PER_S
 from hil.core.codec import from_jsonable, to_jsonable
 from hil.core.motion import displacements_m
 from hil.core.samples import ObstacleLayout
 from hil.model.environment import EnvironmentalLoad
 from hil.runs.policies import Select, policy
+from hil.runs.stack_assembly import (
+    build_runtime,
+    default_start,
+    scenario_hash,
+    synthesizer_for,
+)
 from hil.runs.summary import RunSummary, summarize_run
 from hil.runtime.assembly import (
-    EkfObserver,
     LayoutSolver,
     SymbolicAdapter,
     layout_from_scenario,
-    low_level_for,
-    select_index,
 )
 from hil.runtime.controller_lru import ControllerLru
-from hil.runtime.loop import Runtime, World
-from hil.runtime.protocols import RunLog, SymbolicController
-from hil.runtime.report_age import ReportAgeBudget
-from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer, Solve
+from hil.runtime.loop import World
+from hil.runtime.protocols import RunLog
+from hil.runtime.resynthesis import ResynthesisMode
 from hil.runtime.settings import LoopConfig
 from hil.runtime.signals import stop_on_signals
 from hil.runtime.stats import RunStats
@@ -109,18 +110,6 @@ class SimRunSpec:
     def __post_init__(self) -> None:
         if not (math.isfinite(self.pose_noise_scale) and self.pose_noise_scale > 0.0):
             raise ValueError(f"pose_noise_scale must be > 0, got {self.pose_noise_scale!r}")
-
-
-def default_start(scenario: Scenario) -> tuple[float, float, float]:
-    """Return the paper's kind of start: right of the arena, lower half, bow up (+y)."""
-    x1 = scenario.x_range_m[1]
-    y0, y1 = scenario.y_range_m
-    return (x1 - 0.75, y0 + 0.25 * (y1 - y0), math.pi / 2)
-
-
-def scenario_hash(scenario: Scenario) -> str:
-    """Return a short, stable hash of a scenario's content (:meth:`Scenario.digest`)."""
-    return scenario.digest()
 
 
 def world_motions(scenario: Scenario, spec: SimRunSpec) -> tuple[ObstacleMotion, ...]:
@@ -202,66 +191,6 @@ class VersionControllers(Mapping[int, Controller]):
         return len(self._solver.versions())
 
 
-def build_runtime(
-    scenario: Scenario, world: World, log: RunLog, loop: LoopConfig,
-    synthesizer: Synthesizer, mode: ResynthesisMode, *,
-    select: Select = select_index, wait_select: Select = wait_index,
-    start_nu: FloatArray | None = None,
-    solver: Solve[SymbolicController] | None = None,
-    gains: PidGains | None = None,
-    synthesis_latency_s: float = 0.0,
-) -> Runtime:
-    """Compose the full stack for `scenario` against `world`.
-
-    Args:
-        scenario: The docking problem.
-        world: Clock and adapters of one backend.
-        log: Where the run is recorded.
-        loop: Loop timing and thresholds.
-        synthesizer: Holds the grid's abstraction tables.
-        mode: Where re-synthesis runs.
-        select: Choice among the safe inputs; the paper's cost J by default.
-        wait_select: Choice among the safety controller's inputs while docking is not
-            winning; the slowest by J by default.
-        start_nu: Body velocity (3,) the EKF starts from; None at rest.
-        solver: (Layout, report age) -> controller; a :class:`LayoutSolver` if None.
-        gains: Velocity-PID gains; None: the shipped ones.
-        synthesis_latency_s: Inline: each synthesis takes this long on the world's clock.
-
-    Raises:
-        ValueError: The loop's decision period is not the scenario's tau (every budget
-            and the controller's guarantee are for decisions every tau).
-    """
-    if loop.decision_period_s != scenario.tau_s:
-        raise ValueError(
-            f"[loop] decision_period_s = {loop.decision_period_s:g} s, but scenario "
-            f"{scenario.name!r} was abstracted for tau_s = {scenario.tau_s:g} s: the "
-            "controller's guarantee holds for decisions every tau; set them equal"
-        )
-    layout_solver = LayoutSolver(scenario, synthesizer)
-    solve = solver if solver is not None else layout_solver
-    # In a thread a new layout's controller is put in force as soon as it covers the
-    # vessel's state (the solve's early stop), before the full solve ends.
-    resynthesizer: Resynthesizer[SymbolicController] = Resynthesizer(
-        solve, mode, stages=layout_solver.stages if solver is None else None,
-        latency_s=synthesis_latency_s, clock=world.clock.now_ns)
-    observer = EkfObserver(
-        start_nu=start_nu, estimation_bound_m=scenario.transient.estimation_position_m
-    )
-    return Runtime(world, observer, low_level_for(loop.loop_hz, gains),
-                   resynthesizer, select, log, loop, scenario_hash(scenario),
-                   estimation_position_m=scenario.transient.estimation_position_m,
-                   report_ages=report_ages_of(scenario), wait_select=wait_select)
-
-
-def report_ages_of(scenario: Scenario) -> ReportAgeBudget:
-    """Return the report-age budget of `scenario`'s ``[obstacle_motion]`` (stated or measured)."""
-    tracking = scenario.tracking
-    return ReportAgeBudget(
-        tracking.max_report_age_s, scenario.tracks_obstacles, tracking.measures_report_age
-    )
-
-
 def sim_config(spec: SimRunSpec, scenario: Scenario) -> SimConfig:
     """Return the simulated world of a run: start, seed, faults, load and obstacles.
 
@@ -291,22 +220,6 @@ def _pose_sensor(spec: SimRunSpec) -> PoseSensorConfig:
         noise_std_x_m=k * default.noise_std_x_m, noise_std_y_m=k * default.noise_std_y_m,
         noise_std_yaw_rad=k * default.noise_std_yaw_rad,
     )  # fmt: skip
-
-
-def synthesizer_for(
-    scenario: Scenario, cache_dir: Path | None = None, threads: int = 1
-) -> Synthesizer:
-    """Return a synthesizer holding the scenario grid's tables (from the disk cache).
-
-    Its solves read and write the solved-controller store under the same folder.
-
-    Args:
-        scenario: Whose grid, inputs and budget.
-        cache_dir: Table cache folder (default: the package's).
-        threads: Kernel threads per solve (see :class:`Synthesizer`).
-    """
-    tables, _ = SymbolicProblem.from_scenario(scenario).tables(cache_dir=cache_dir)
-    return Synthesizer(tables, threads=threads, cache_dir=cache_dir)
 
 
 LiveView = Callable[[Scenario, RunLog], RunLog]

@@ -22,7 +22,7 @@ from hil.adapters.ros import RosConfig, RosWorld
 from hil.bag.recorder import Recorder
 from hil.bag.run_info import RunInfo
 from hil.core.config import from_table, load_toml
-from hil.runs.sim_run import build_runtime, scenario_hash, synthesizer_for
+from hil.runs.stack_assembly import build_runtime, scenario_hash, synthesizer_for
 from hil.runs.summary import RunSummary, summarize_run
 from hil.runtime.assembly import layout_from_scenario, warm_up_kernels
 from hil.runtime.loop import Mode, Runtime, World

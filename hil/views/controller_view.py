@@ -32,7 +32,7 @@ from hil.controllers.symbolic import Controller, Grid, SymbolicError
 from hil.controllers.symbolic.abstraction import arc_poses
 from hil.core.arrays import FloatArray
 from hil.core.records import Decision
-from hil.runs.sim_run import scenario_hash, synthesizer_for
+from hil.runs.stack_assembly import scenario_hash, synthesizer_for
 from hil.runtime.assembly import LayoutSolver, obstacles_from_layout
 from hil.scenarios import Scenario, ScenarioError, load_scenario, packaged_scenarios
 

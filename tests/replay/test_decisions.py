@@ -21,7 +21,7 @@ from hil.replay.decisions import (
     relied_on_stale_report,
 )
 from hil.replay.regression import Status
-from hil.runs.sim_run import default_start
+from hil.runs.stack_assembly import default_start
 from hil.runtime.assembly import layout_from_scenario
 from hil.scenarios import load_scenario
 

@@ -15,7 +15,8 @@ from hil.runs.campaign import (
     first_decision_state,
 )
 from hil.runs.clearance import hull_margin_series
-from hil.runs.sim_run import SimRunSpec, simulate, synthesizer_for
+from hil.runs.sim_run import SimRunSpec, simulate
+from hil.runs.stack_assembly import synthesizer_for
 from hil.runs.summary import RunSummary, TrackingError
 from hil.runtime.assembly import LayoutSolver, layout_from_scenario
 from hil.runtime.settings import LoopConfig

@@ -21,14 +21,8 @@ from numpy.typing import NDArray
 from hil.adapters.sim import ObstacleMotion
 from hil.controllers.symbolic import DecisionContract
 from hil.runs.guarantee import GuaranteeViolations, judge_outcome, judge_run
-from hil.runs.sim_run import (
-    SimOutcome,
-    SimRunSpec,
-    simulate,
-    spec_from_json,
-    spec_to_json,
-    synthesizer_for,
-)
+from hil.runs.sim_run import SimOutcome, SimRunSpec, simulate, spec_from_json, spec_to_json
+from hil.runs.stack_assembly import synthesizer_for
 from hil.runtime.assembly import LayoutSolver, layout_from_scenario
 from hil.runtime.settings import LoopConfig
 from hil.runtime.trace import MemoryLog

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from hil.runs.sim_run import synthesizer_for
+from hil.runs.stack_assembly import synthesizer_for
 from hil.runtime.assembly import LayoutSolver, SymbolicAdapter, layout_from_scenario
 from hil.scenarios import Scenario, load_scenario
 

@@ -25,7 +25,7 @@ from hil.controllers.symbolic import DecisionContract
 from hil.core.records import EventLevel
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample
 from hil.runs.guarantee import judge_run
-from hil.runs.sim_run import build_runtime, default_start, synthesizer_for
+from hil.runs.stack_assembly import build_runtime, default_start, synthesizer_for
 from hil.runtime.assembly import EkfObserver, SymbolicAdapter, layout_from_scenario
 from hil.runtime.loop import Runtime, World
 from hil.runtime.monitor import Monitor

@@ -23,7 +23,7 @@ import pytest
 from hil.adapters.sim import ObstacleMotion, SimConfig, SimWorld
 from hil.core.records import EventLevel
 from hil.core.samples import ObstacleLayout
-from hil.runs.sim_run import build_runtime, default_start, synthesizer_for
+from hil.runs.stack_assembly import build_runtime, default_start, synthesizer_for
 from hil.runtime.assembly import SymbolicAdapter, layout_from_scenario
 from hil.runtime.loop import Runtime, World
 from hil.runtime.protocols import SymbolicController

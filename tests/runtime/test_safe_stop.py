@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from hil.adapters.sim import SimConfig, SimWorld
-from hil.runs.sim_run import build_runtime, default_start, synthesizer_for
+from hil.runs.stack_assembly import build_runtime, default_start, synthesizer_for
 from hil.runtime.assembly import layout_from_scenario
 from hil.runtime.loop import MAX_BRAKE_S, Mode, Runtime, World
 from hil.runtime.resynthesis import ResynthesisMode

@@ -15,7 +15,7 @@ from hil.adapters.obstacles import StaticObstacleSource
 from hil.bag.reader import BagReader
 from hil.bag.recorder import Recorder
 from hil.core.samples import ImuSample, PoseSample, ThrusterCommand
-from hil.runs.sim_run import build_runtime, default_start, synthesizer_for
+from hil.runs.stack_assembly import build_runtime, default_start, synthesizer_for
 from hil.runtime.assembly import layout_from_scenario
 from hil.runtime.loop import REST_HOLD_S, World
 from hil.runtime.resynthesis import ResynthesisMode
