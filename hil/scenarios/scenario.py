@@ -452,7 +452,7 @@ def check_start(scenario: Scenario, x_m: float, y_m: float, psi_rad: float) -> N
 
     Raises:
         ScenarioError: The pose is not finite, the body origin lies outside the arena,
-            or the hull overlaps a real obstacle.
+            a hull corner lies past a wall, or the hull overlaps a real obstacle.
     """
     pose = (x_m, y_m, psi_rad)
     if not all(math.isfinite(v) for v in pose):
@@ -464,6 +464,17 @@ def check_start(scenario: Scenario, x_m: float, y_m: float, psi_rad: float) -> N
             f"start ({x_m!r}, {y_m!r}) is outside the arena x {[x0, x1]!r} m, y {[y0, y1]!r} m"
         )
     hull = hull_footprint(scenario.hull, x_m, y_m, psi_rad)
+    corners = hull.vertices()
+    outside = (
+        (corners[:, 0] < x0) | (corners[:, 0] > x1) | (corners[:, 1] < y0) | (corners[:, 1] > y1)
+    )
+    if outside.any():
+        cx, cy = (float(v) for v in corners[np.argmax(outside)])
+        raise ScenarioError(
+            f"start ({x_m!r}, {y_m!r}, {math.degrees(psi_rad):.1f} deg) puts a hull corner "
+            f"past the arena's wall, at ({cx:.3f}, {cy:.3f}) m (arena x {[x0, x1]!r} m, "
+            f"y {[y0, y1]!r} m)"
+        )
     for obstacle in scenario.obstacles:
         if convex_distance_m(hull, obstacle.shape) == 0.0:
             where = "inside" if convex_distance_m(_point(x_m, y_m), obstacle.shape) == 0.0 \

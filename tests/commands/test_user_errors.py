@@ -55,6 +55,7 @@ def test_campaign_max_duration_must_be_positive(capsys: pytest.CaptureFixture[st
     [
         ("-1,2,0", "inside obstacle 'O2'"),  # no "=": a value that starts with "-"
         ("10,0,0", "outside the arena"),
+        ("0.8,0,0", "hull corner past the arena's wall"),  # centre inside, bow 0.3 m past x = 1
         ("1,2", "'1,2'"),
         ("nan,0,0", "'nan,0,0'"),
     ],
