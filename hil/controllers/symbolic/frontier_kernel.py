@@ -104,16 +104,21 @@ def viable_words(
     px: int,
     pw: int,
     out: U64Array,
+    i_lo: int = 0,
+    i_hi: int = -1,
 ) -> None:
-    """Fill out[cls, u, :, k, :]: cells whose tube (class cls, input u, heading k) is free.
+    """Fill out[cls, u, i, k, :] for i in [i_lo, i_hi] (all rows if i_hi < 0): free tubes.
 
-    Fe holds the free cells eroded along y, shape (layers, nx + 2 px, nw + 2 pw); out
+    Bit b of word w: the tube (class cls, input u, heading k) from cell (i, 64 w + b) is
+    free. Fe holds the free cells eroded along y, shape (layers, nx + 2 px, nw + 2 pw); out
     has shape (3, m, nx, npsi, nw).
     """
     nx = out.shape[2]
     nw = out.shape[4]
     x0 = tube_x0[cls, k, u]
-    for i in range(nx):
+    if i_hi < 0:
+        i_hi = nx - 1
+    for i in range(max(i_lo, 0), min(i_hi, nx - 1) + 1):
         ip = px + i
         for w in range(nw):
             wp = pw + w

@@ -253,6 +253,24 @@ def changed_band(
 
 
 @njit
+def _row_ends(rows: U64Array, lo: int, n: int, nx: int) -> tuple[int, int]:
+    """Return lo + the first and last index of a nonzero entry of rows[:n]; (nx, -1): none."""
+    first = -1
+    for i in range(n):
+        if rows[i] != _ZERO:
+            first = i
+            break
+    if first < 0:
+        return nx, -1
+    last = first
+    for i in range(n - 1, first, -1):
+        if rows[i] != _ZERO:
+            last = i
+            break
+    return lo + first, lo + last
+
+
+@njit
 def _sweep_input(
     u: int,
     Wt: U64Array,
@@ -271,7 +289,8 @@ def _sweep_input(
     """Compute nA[u], nB[u] and their bands for the next level; add nB[u] to Bt[u].
 
     Reads Wt[u] and ch[u] only, writes only input u's entries (threads may run inputs
-    side by side).
+    side by side). Each row range is read word by word into `rows` (the OR of a row's
+    words), so every loop runs over contiguous x and vectorizes.
     """
     npsi = Wt.shape[1]
     nw = Bt.shape[2]
@@ -281,6 +300,7 @@ def _sweep_input(
     L = np.empty((nw, xp), dtype=np.uint64)
     R = np.empty((nw, xp), dtype=np.uint64)
     out = np.empty((nw, nx), dtype=np.uint64)
+    rows = np.empty(nx, dtype=np.uint64)
     for k0 in range(npsi):
         for c in range(2):
             band = band_a if c == 0 else band_b
@@ -295,30 +315,38 @@ def _sweep_input(
             # Candidates: viable and not yet in W_u (class 0) / in B_u (class 1); a
             # class-1 state also in W_u or joining A_u (B_u is inside A_u). Only the
             # candidates' rows need the box test.
-            a0 = band_a[u, k0, 0]
-            a1 = band_a[u, k0, 1]
-            first = nx
-            last = -1
-            for i in range(lo, hi + 1):
-                anyc = _ZERO
-                for w in range(nw):
-                    if c == 0:
-                        anyc |= Vt[0, u, k0, w, i] & ~Wt[u, k0, pw + w, px + i]
-                    else:
-                        inw = Wt[u, k0, pw + w, px + i]
-                        if a0 <= i <= a1:
-                            inw |= nA[u, k0, w, i]
-                        anyc |= Vt[1, u, k0, w, i] & ~Bt[u, k0, w, i] & inw
-                if anyc != _ZERO:
-                    first = min(first, i)
-                    last = i
-            if first > last:
+            nb = hi + 1 - lo
+            r = rows[:nb]
+            for i in range(nb):
+                r[i] = _ZERO
+            a0 = max(band_a[u, k0, 0], lo)
+            a1 = min(band_a[u, k0, 1], hi)
+            for w in range(nw):
+                vw = Vt[c, u, k0, w, lo : hi + 1]
+                cur = Wt[u, k0, pw + w, px + lo : px + hi + 1]
+                if c == 0:
+                    for i in range(nb):
+                        r[i] |= vw[i] & ~cur[i]
+                    continue
+                bw = Bt[u, k0, w, lo : hi + 1]
+                for i in range(nb):
+                    r[i] |= vw[i] & ~bw[i] & cur[i]
+                if a0 <= a1:
+                    na = nA[u, k0, w, a0 : a1 + 1]
+                    va = Vt[1, u, k0, w, a0 : a1 + 1]
+                    ba = Bt[u, k0, w, a0 : a1 + 1]
+                    ra = rows[a0 - lo : a1 + 1 - lo]
+                    for i in range(a1 + 1 - a0):
+                        ra[i] |= va[i] & ~ba[i] & na[i]
+            lo, hi = _row_ends(rows, lo, nb, nx)
+            if lo > hi:
                 continue
-            lo = first
-            hi = last
             nb = hi + 1 - lo
             box_test(Wt, u, k0, h0, h1, box, lo, hi, px, pw, H, L, R, out)
             dst = nA if c == 0 else nB
+            r = rows[:nb]
+            for i in range(nb):
+                r[i] = _ZERO
             for w in range(nw):
                 vw = Vt[c, u, k0, w, lo : hi + 1]
                 ow = out[w, lo : hi + 1]
@@ -326,24 +354,17 @@ def _sweep_input(
                 if c == 0:
                     cur = Wt[u, k0, pw + w, px + lo : px + hi + 1]
                     for i in range(nb):
-                        dw[i] = vw[i] & ~cur[i] & ow[i]
+                        g = vw[i] & ~cur[i] & ow[i]
+                        dw[i] = g
+                        r[i] |= g
                 else:
                     bw = Bt[u, k0, w, lo : hi + 1]
                     for i in range(nb):
                         g = vw[i] & ~bw[i] & ow[i]
                         dw[i] = g
                         bw[i] |= g
-            first = nx
-            last = -1
-            for i in range(lo, hi + 1):
-                anyb = _ZERO
-                for w in range(nw):
-                    anyb |= dst[u, k0, w, i]
-                if anyb != _ZERO:
-                    first = min(first, i)
-                    last = i
-            band[u, k0, 0] = first
-            band[u, k0, 1] = last
+                        r[i] |= g
+            band[u, k0, 0], band[u, k0, 1] = _row_ends(rows, lo, nb, nx)
 
 
 @njit

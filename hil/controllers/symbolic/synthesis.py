@@ -32,7 +32,7 @@ from hil.controllers.symbolic.frontier_kernel import (
 )
 from hil.controllers.symbolic.kernels import pack_rows
 from hil.controllers.symbolic.lattice import InputLattice
-from hil.controllers.symbolic.levels import LevelSolver
+from hil.controllers.symbolic.levels import LevelSolver, Scratch
 from hil.controllers.symbolic.planes_kernel import from_sweep_layout, nested_classes
 from hil.controllers.symbolic.problem import SymbolicProblem
 from hil.controllers.symbolic.safety import solve_safe_set
@@ -130,6 +130,7 @@ def _max_threads() -> int:
 @njit
 def _all_viable(
     free_words: U64Array,
+    columns: I32Array,
     order: I32Array,
     starts: I32Array,
     tube_x0: I32Array,
@@ -144,13 +145,15 @@ def _all_viable(
     """Fill out (3, m, nx, npsi, nw): viable words of every (class, input, heading cell).
 
     free_words (n_ranges, nx, nw) are the packed free masks; order[starts[h]:starts[h+1]]
-    lists the flat (c, k, u) whose hull range is h.
+    lists the flat (c, k, u) whose hull range is h. Only the cells whose tube crosses a
+    column in columns[h] = [lo, hi] are written (lo > hi: none of range h; out holds the
+    rest already): a tube is free or not by the columns it crosses alone.
     """
     n_ranges, nx, nw = free_words.shape
     m = out.shape[1]
     npsi = out.shape[3]
     for h in range(n_ranges):
-        if starts[h] == starts[h + 1]:
+        if starts[h] == starts[h + 1] or columns[h, 0] > columns[h, 1]:
             continue
         for i in range(nx):
             for w in range(nw):
@@ -162,7 +165,30 @@ def _all_viable(
             ck = flat // m
             k = ck % npsi
             c = ck // npsi
-            viable_words(Fe, c, k, u, tube_x0, tube_n, tube_y, px, pw, out)
+            # Tube columns i + x0 .. i + x0 + n - 1 meet [lo, hi].
+            x0 = tube_x0[c, k, u]
+            i_lo = columns[h, 0] - x0 - tube_n[c, k, u] + 1
+            i_hi = columns[h, 1] - x0
+            if i_hi >= 0:
+                viable_words(Fe, c, k, u, tube_x0, tube_n, tube_y, px, pw, out, i_lo, i_hi)
+
+
+def _changed_columns(before: U64Array | None, after: U64Array) -> I32Array:
+    """Return each hull range's changed x columns [lo, hi], shape (n_ranges, 2) (lo > hi: none).
+
+    before, after: packed free masks (n_ranges, nx, nw); no `before`: every column.
+    """
+    n_ranges, nx, _ = after.shape
+    out = np.empty((n_ranges, 2), dtype=np.int32)
+    out[:, 0] = 0
+    out[:, 1] = nx - 1
+    if before is None or before.shape != after.shape:
+        return out
+    changed = np.any(before != after, axis=2)  # (n_ranges, nx)
+    for h in range(n_ranges):
+        columns = np.flatnonzero(changed[h])
+        out[h] = (columns[0], columns[-1]) if columns.size else (nx, -1)
+    return out
 
 
 class Synthesizer:
@@ -206,6 +232,11 @@ class Synthesizer:
         self._memo = memo and not trace_memory
         self._store = ControllerStore.default(cache_dir) if use_cache else None
         self._writes: list[threading.Thread] = []
+        self._reuse_lock = threading.Lock()
+        self._last_viable: tuple[U64Array, U64Array] | None = None
+        """The last solve's packed free masks and viable words (a new layout starts there)."""
+        self._spare: Scratch | None = None
+        """The working arrays of the last finished planes solve (the next one reuses them)."""
         self.sources = ControllerSources()
         succ = tables.succ
         self._reach = np.ascontiguousarray(
@@ -345,6 +376,15 @@ class Synthesizer:
             )
         yield controller
 
+    def start_from(self, problem: SymbolicProblem) -> None:
+        """Make `problem`'s layout the one the next solve starts from, without solving it.
+
+        A solve computes only the viable words that its layout changed against the last
+        layout this synthesizer saw (:meth:`_viable`); a benchmark of "a new layout after
+        this one" sets the previous layout here.
+        """
+        self._viable(problem.free_masks(self._psi_lo, self._psi_hi))
+
     def wait_stored(self) -> None:
         """Block until every controller this synthesizer solved is written to the store."""
         while self._writes:
@@ -419,7 +459,13 @@ class Synthesizer:
         self._writes = [t for t in self._writes if t.is_alive()] + [thread]
 
     def _viable(self, free: BoolArray) -> U64Array:
-        """Return the viable words (3, m, nx, npsi, nw) of the free masks (n_ranges, nx, ny)."""
+        """Return the viable words (3, m, nx, npsi, nw) of the free masks (n_ranges, nx, ny).
+
+        From the previous call's words where the masks differ in a few columns (a moved
+        obstacle): only the cells whose tubes cross a changed column are computed again.
+        The array returned is new (or the previous one, unchanged, if nothing changed):
+        controllers keep it, so it is never written after it is returned.
+        """
         t = self._tables
         nx, ny, npsi = t.grid.shape
         m = t.n_inputs
@@ -427,11 +473,20 @@ class Synthesizer:
         px, _, pw = (int(p) for p in self._pads)
         nw = (ny + 63) // 64
         free_words = pack_rows(np.ascontiguousarray(free.reshape(-1, ny))).reshape(n_ranges, nx, nw)
-        viable = np.zeros((N_CLASSES, m, nx, npsi, nw), dtype=np.uint64)
+        with self._reuse_lock:
+            previous = self._last_viable
+        columns = _changed_columns(None if previous is None else previous[0], free_words)
+        if previous is not None and previous[0].shape == free_words.shape:
+            if not np.any(columns[:, 0] <= columns[:, 1]):
+                return previous[1]
+            viable = previous[1].copy()
+        else:
+            viable = np.zeros((N_CLASSES, m, nx, npsi, nw), dtype=np.uint64)
         f_pad = np.zeros((nx + 2 * px, nw + 2 * pw), dtype=np.uint64)
         f_eroded = np.zeros((self._f_layers, nx + 2 * px, nw + 2 * pw), dtype=np.uint64)
         _all_viable(
             free_words,
+            columns,
             self._order,
             self._starts,
             t.tube_x0,
@@ -443,6 +498,8 @@ class Synthesizer:
             f_eroded,
             viable,
         )
+        with self._reuse_lock:
+            self._last_viable = (free_words, viable)
         return viable
 
     def _solve_traced(
@@ -474,9 +531,11 @@ class Synthesizer:
     def _level_solver(self, viable: U64Array, goal: U64Array, threads: int) -> LevelSolver:
         t = self._tables
         axes = self._lattice.axes
+        with self._reuse_lock:
+            scratch, self._spare = self._spare, None
         return LevelSolver(
             goal, viable, self._pads, t.succ, t.heading,
-            (len(axes[0]), len(axes[1]), len(axes[2])), N_PLANES, threads,
+            (len(axes[0]), len(axes[1]), len(axes[2])), N_PLANES, threads, scratch,
         )  # fmt: skip
 
     def _frontier_stages(
@@ -565,6 +624,8 @@ class Synthesizer:
         # states farther from the target are left out (not winning), as in an early
         # controller; the safety controller still covers them.
         solver.solve()
+        with self._reuse_lock:
+            self._spare = solver.scratch
         W, planes = solver.export()
         yield W, planes, solver.level, True
 

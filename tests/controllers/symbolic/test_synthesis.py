@@ -242,6 +242,35 @@ def test_more_obstacles_only_shrink_the_winning_sets(
             assert np.all(bigger[won] <= smaller[won]), p
 
 
+def test_each_new_layout_starts_from_the_last_ones_viable_words(
+    problem: SymbolicProblem, tables: Tables
+) -> None:
+    """One synthesizer through a run of layouts recomputes only the columns that changed.
+
+    Its viable words equal a fresh synthesizer's for every layout, and every layout's
+    values solve that layout's game (the equation, from the free masks alone).
+    """
+    synthesizer = Synthesizer(tables, memo=False, use_cache=False)
+    moved = (Rect(0.2, 0.4, -0.9, 0.2), Rect(0.3, 0.5, -0.9, 0.2))
+    layouts = [
+        problem,
+        problem.with_obstacles(moved[:1]),
+        problem.with_obstacles(moved[1:]),
+        problem.with_obstacles((*moved[1:], Rect(-0.2, 0.0, 0.6, 1.0))),
+        problem.with_obstacles(()),
+        problem,
+    ]
+    words = []
+    for layout in layouts:
+        controller = synthesizer.solve_problem(layout)
+        fresh = Synthesizer(tables, memo=False, use_cache=False).solve_problem(layout)
+        np.testing.assert_array_equal(controller.viable_words, fresh.viable_words)
+        _check_solution(layout, tables, controller)
+        words.append(controller.viable_words)
+    assert not np.array_equal(words[0], words[1])  # the layouts do differ
+    assert words[-1] is not words[0]  # a new array: the first controller's is never written
+
+
 def test_no_winning_cell_is_reported(problem: SymbolicProblem, tables: Tables) -> None:
     cover = Rect(-1.5, -0.5, -1.0, 1.0)  # over the whole target
     covered = problem.with_obstacles((cover,))
