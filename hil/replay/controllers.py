@@ -11,11 +11,11 @@ from pathlib import Path
 
 from hil.bag.errors import ReplayError
 from hil.bag.run_data import RunData
-from hil.controllers.symbolic import NoWinningSetError, Synthesizer
+from hil.controllers.symbolic import NoWinningSetError, SymbolicAdapter, Synthesizer
 from hil.core.samples import ObstacleLayout
 from hil.core.shapes import Rect
 from hil.runs.stack_assembly import scenario_hash, synthesizer_for
-from hil.runtime.assembly import LayoutSolver, SymbolicAdapter
+from hil.runtime.assembly import LayoutSolver
 from hil.runtime.controller_lru import ControllerLru
 from hil.scenarios import Scenario, ScenarioError, load_scenario
 

@@ -41,14 +41,20 @@ from typing import Any
 import numpy as np
 
 from hil.bag.run_data import RunData
-from hil.controllers.symbolic import ControllerSources, NoWinningSetError, cost, wait_index
+from hil.controllers.symbolic import (
+    ControllerSources,
+    NoWinningSetError,
+    SymbolicAdapter,
+    cost,
+    j_select,
+    wait_slowest,
+)
 from hil.core.arrays import FloatArray
 from hil.core.geometry import wrap_angles
 from hil.core.records import Decision
 from hil.core.samples import ObstacleLayout
 from hil.replay.controllers import ControllerCache
 from hil.replay.regression import Check, Finding, Status, time_s
-from hil.runtime.assembly import SymbolicAdapter, select_index
 from hil.runtime.protocols import SymbolicController
 from hil.runtime.settings import NS_PER_S
 
@@ -107,17 +113,15 @@ def recompute(
     Given the previous choice (3,) for the cost J, the reference in force (input-grid
     index) and whether it was a first decision.
 
-    Asks the controller the one query the runtime asks (:meth:`SymbolicController.query`)
-    and picks as the vessel does by default: J among the safe inputs, the slowest
-    (:func:`wait_index`) among the staying ones; none in the target (value 0) or where
+    The runtime's own call (:meth:`SymbolicController.decide`) with the choices the
+    vessel makes by default: J among the safe inputs (:func:`j_select`), the slowest
+    (:func:`wait_slowest`) among the staying ones; none in the target (value 0) or where
     nothing is safe.
     """
-    q = controller.query(state, reference, first)
-    chosen = -1
-    if q.inputs.size:
-        pick = wait_index if q.staying else select_index
-        chosen = int(q.inputs[pick(controller.inputs[q.inputs], previous)])
-    return Recomputed(q.cell, q.value, tuple(sorted(int(i) for i in q.inputs)), chosen, q.staying)
+    a = controller.decide(state, reference, first, previous, j_select, wait_slowest)
+    return Recomputed(
+        a.cell, a.value, tuple(sorted(int(i) for i in a.inputs)), a.chosen, a.staying
+    )
 
 
 def _version_times(run: RunData) -> dict[int, int]:

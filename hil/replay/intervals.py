@@ -37,7 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hil.bag.run_data import RunData
-from hil.controllers.symbolic import DecisionContract
+from hil.controllers.symbolic import DecisionContract, SymbolicAdapter
 from hil.core.arrays import FloatArray
 from hil.core.clock import NS_PER_S
 from hil.core.records import Decision
@@ -46,7 +46,6 @@ from hil.core.transient import TransientBudget
 from hil.replay.controllers import ControllerCache
 from hil.replay.decisions import decision_controllers
 from hil.replay.regression import Check, Finding, Interval, Status, time_s
-from hil.runtime.assembly import SymbolicAdapter
 from hil.scenarios import Scenario
 
 VELOCITY_ESTIMATE_TOLERANCE = (0.012, 0.010, 0.015)

@@ -25,14 +25,13 @@ from itertools import pairwise
 
 import numpy as np
 
-from hil.controllers.symbolic import Controller, DecisionContract, cells_of
+from hil.controllers.symbolic import Controller, DecisionContract, Select, cells_of
 from hil.core.arrays import FloatArray
 from hil.core.clock import NS_PER_S
 from hil.core.motion import ObstacleMotion, displacements_m
 from hil.core.records import Decision
 from hil.core.shapes import Shape
 from hil.runs.clearance import hull_corners
-from hil.runs.policies import Select
 from hil.runs.sim_run import SimOutcome, SimRunSpec, simulate
 from hil.runs.summary import RunSummary
 from hil.runtime.trace import MemoryLog

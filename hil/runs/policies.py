@@ -12,6 +12,9 @@ flying another (:data:`POLICIES`):
   turns, a weave);
 - ``fastest``: the one of greatest speed |u| + |v| (the most momentum to brake, the
   largest transients; the paper's J penalizes speed, so it flies the slow end instead);
+- ``slowest``: the one whose successor cells reach the largest value (the least progress
+  toward the target that the controller still promises: each decision one step nearer
+  at most, the longest way round);
 - ``closest``: the one whose exact arc over tau (the input held from the estimated
   state) brings the hull closest to an obstacle (where the scenario places it) or a
   wall: the guarantee's margins, tested where they are thinnest;
@@ -22,46 +25,48 @@ Ties go to the lowest row, so a run is reproducible from its seed on every machi
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import numpy as np
 
+from hil.controllers.symbolic import Options, Select, j_select
 from hil.controllers.symbolic.abstraction import arc_poses
 from hil.core.arrays import FloatArray
 from hil.runs.clearance import hull_margin_series
-from hil.runtime.assembly import select_index
 from hil.scenarios import Scenario
 
-Select = Callable[[FloatArray, FloatArray, FloatArray], int]
-"""Picks a row of the safe inputs (k, 3) given the previous input (3,) and the estimated
-state (3,): x m, y m, psi rad."""
+__all__ = ["ARC_POINTS", "POLICIES", "Select", "arc_clearance", "policies_of", "policy"]
 
-POLICIES = ("J", "random", "largest-change", "zigzag", "fastest", "closest", "mixed")
+POLICIES = (
+    "J", "random", "largest-change", "zigzag", "fastest", "slowest", "closest", "mixed",
+)  # fmt: skip
+"""Names ``--select`` takes."""
 
 ARC_POINTS = 21
 """Poses per arc the ``closest`` policy judges (every tau / 20: 0.1 s at tau = 2 s, 1 cm
 at the fastest surge)."""
-"""Names ``--select`` takes."""
 
 
 def _largest_change(steps: FloatArray) -> Select:
-    def select(safe: FloatArray, previous: FloatArray, _state: FloatArray) -> int:
-        return int(np.argmax(np.abs((safe - previous) / steps).sum(axis=1)))
+    def select(o: Options) -> int:
+        return int(np.argmax(np.abs((o.inputs - o.previous) / steps).sum(axis=1)))
 
     return select
 
 
 def _zigzag(steps: FloatArray) -> Select:
-    def select(safe: FloatArray, previous: FloatArray, _state: FloatArray) -> int:
+    def select(o: Options) -> int:
         # Against the previous sway and yaw rate's signs (a still axis: toward +).
-        sign = np.where(previous[1:] > 0.0, -1.0, 1.0)
-        return int(np.argmax((safe[:, 1:] * sign / steps[1:]).sum(axis=1)))
+        sign = np.where(o.previous[1:] > 0.0, -1.0, 1.0)
+        return int(np.argmax((o.inputs[:, 1:] * sign / steps[1:]).sum(axis=1)))
 
     return select
 
 
-def _fastest(safe: FloatArray, _previous: FloatArray, _state: FloatArray) -> int:
-    return int(np.argmax(np.abs(safe[:, 0]) + np.abs(safe[:, 1])))
+def _fastest(o: Options) -> int:
+    return int(np.argmax(np.abs(o.inputs[:, 0]) + np.abs(o.inputs[:, 1])))
+
+
+def _slowest(o: Options) -> int:
+    return int(np.argmax(o.successor_values))
 
 
 def arc_clearance(scenario: Scenario, state: FloatArray, inputs: FloatArray) -> FloatArray:
@@ -79,8 +84,8 @@ def arc_clearance(scenario: Scenario, state: FloatArray, inputs: FloatArray) -> 
 
 
 def _closest(scenario: Scenario) -> Select:
-    def select(safe: FloatArray, _previous: FloatArray, state: FloatArray) -> int:
-        return int(np.argmin(arc_clearance(scenario, state, safe)))
+    def select(o: Options) -> int:
+        return int(np.argmin(arc_clearance(scenario, o.state, o.inputs)))
 
     return select
 
@@ -102,10 +107,11 @@ def policy(name: str, seed: int, steps: FloatArray, scenario: Scenario | None = 
     steps = np.asarray(steps, dtype=np.float64)
     rng = np.random.default_rng([seed, POLICIES.index(name) if name in POLICIES else 0])
     fixed: dict[str, Select] = {
-        "J": select_index,
+        "J": j_select,
         "largest-change": _largest_change(steps),
         "zigzag": _zigzag(steps),
         "fastest": _fastest,
+        "slowest": _slowest,
     }
     if scenario is not None:
         fixed["closest"] = _closest(scenario)
@@ -114,16 +120,16 @@ def policy(name: str, seed: int, steps: FloatArray, scenario: Scenario | None = 
     if name in fixed:
         return fixed[name]
 
-    def uniform(safe: FloatArray, _previous: FloatArray, _state: FloatArray) -> int:
-        return int(rng.integers(len(safe)))
+    def uniform(o: Options) -> int:
+        return int(rng.integers(len(o.inputs)))
 
     if name == "random":
         return uniform
     if name == "mixed":
         options = [*fixed.values(), uniform]
 
-        def mixed(safe: FloatArray, previous: FloatArray, state: FloatArray) -> int:
-            return options[int(rng.integers(len(options)))](safe, previous, state)
+        def mixed(o: Options) -> int:
+            return options[int(rng.integers(len(options)))](o)
 
         return mixed
     raise ValueError(f"selection policy must be one of {', '.join(POLICIES)}, got {name!r}")

@@ -24,13 +24,13 @@ from hil.adapters.sim import ObstacleMotion, SimConfig, SimWorld, ThrusterOutage
 from hil.bag.recorder import Recorder
 from hil.bag.run_info import RunInfo
 from hil.controllers.pid import PidGains
-from hil.controllers.symbolic import Controller, wait_index
+from hil.controllers.symbolic import Controller, Select, SymbolicAdapter, wait_slowest
 from hil.core.clock import NS_PER_S
 from hil.core.codec import from_jsonable, to_jsonable
 from hil.core.motion import displacements_m
 from hil.core.samples import ObstacleLayout
 from hil.model.environment import EnvironmentalLoad
-from hil.runs.policies import Select, policy
+from hil.runs.policies import policy
 from hil.runs.stack_assembly import (
     build_runtime,
     default_start,
@@ -38,11 +38,7 @@ from hil.runs.stack_assembly import (
     synthesizer_for,
 )
 from hil.runs.summary import RunSummary, summarize_run
-from hil.runtime.assembly import (
-    LayoutSolver,
-    SymbolicAdapter,
-    layout_from_scenario,
-)
+from hil.runtime.assembly import LayoutSolver, layout_from_scenario
 from hil.runtime.controller_lru import ControllerLru
 from hil.runtime.loop import World
 from hil.runtime.protocols import RunLog
@@ -279,7 +275,7 @@ def simulate(
     """
     wall_start = time.perf_counter()
     scenario = load_scenario(spec.scenario)
-    wait_select: Select = wait_index
+    wait_select: Select = wait_slowest
     if select is None:
         steps = np.array([scenario.surge.step, scenario.sway.step, scenario.yaw_rate.step])
         select = policy(spec.select, spec.seed, steps, scenario)

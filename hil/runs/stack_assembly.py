@@ -11,10 +11,9 @@ import math
 from pathlib import Path
 
 from hil.controllers.pid import PidGains
-from hil.controllers.symbolic import SymbolicProblem, Synthesizer, wait_index
+from hil.controllers.symbolic import Select, SymbolicProblem, Synthesizer, j_select, wait_slowest
 from hil.core.arrays import FloatArray
-from hil.runs.policies import Select
-from hil.runtime.assembly import EkfObserver, LayoutSolver, low_level_for, select_index
+from hil.runtime.assembly import EkfObserver, LayoutSolver, low_level_for
 from hil.runtime.loop import Runtime, World
 from hil.runtime.protocols import RunLog, SymbolicController
 from hil.runtime.report_age import ReportAgeBudget
@@ -40,7 +39,7 @@ def scenario_hash(scenario: Scenario) -> str:
 def build_runtime(
     scenario: Scenario, world: World, log: RunLog, loop: LoopConfig,
     synthesizer: Synthesizer, mode: ResynthesisMode, *,
-    select: Select = select_index, wait_select: Select = wait_index,
+    select: Select = j_select, wait_select: Select = wait_slowest,
     start_nu: FloatArray | None = None,
     solver: Solve[SymbolicController] | None = None,
     gains: PidGains | None = None,

@@ -7,7 +7,6 @@ controller with its re-synthesis each get a thin adapter here, so the loop in
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
 
@@ -19,17 +18,16 @@ from hil.controllers.observer import Ekf, ObserverStatus
 from hil.controllers.pid import PidGains
 from hil.controllers.symbolic import (
     Controller,
-    DecisionContract,
     NoWinningSetError,
+    SymbolicAdapter,
     SymbolicProblem,
     Synthesizer,
     Watch,
-    cost,
 )
-from hil.core.arrays import FloatArray, IntArray
+from hil.core.arrays import FloatArray
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
 from hil.core.shapes import Rect
-from hil.runtime.protocols import DecisionQuery, LowLevelOutput
+from hil.runtime.protocols import LowLevelOutput
 from hil.runtime.resynthesis import VesselState
 from hil.scenarios import Obstacle, Scenario
 
@@ -135,72 +133,6 @@ def low_level_for(loop_hz: float, gains: PidGains | None = None) -> PidAllocator
     return PidAllocator(
         LowLevelController(params if gains is None else replace(params, gains=gains))
     )
-
-
-class SymbolicAdapter:
-    """A synthesized controller behind the runtime's SymbolicController protocol."""
-
-    def __init__(self, controller: Controller) -> None:
-        self.controller = controller
-        grid = controller.grid
-        self._strides = (grid.ny * grid.npsi, grid.npsi, 1)
-
-    @property
-    def inputs(self) -> FloatArray:
-        """The input grid, shape (n_inputs, 3)."""
-        return self.controller.inputs
-
-    def locate(self, state: FloatArray) -> int:
-        """Return the flat (C-order) cell index of `state`, -1 outside the grid."""
-        cell = self.controller.grid.cell_of(state)
-        if cell is None:
-            return -1
-        return sum(c * s for c, s in zip(cell, self._strides, strict=True))
-
-    def nearest_input(self, velocity: FloatArray) -> int:
-        """Return the input-grid index nearest a body velocity (u, v, r)."""
-        return self.controller.lattice.nearest(velocity)
-
-    def value(self, state: FloatArray, reference: int, first: bool) -> float:
-        """Return the value at `state` with `reference` in force (inf: nothing safe)."""
-        return self.controller.decision_value(state, reference, first)
-
-    def safe_input_indices(self, state: FloatArray, reference: int, first: bool) -> IntArray:
-        """Return the input indices of every safe input at `state`, shape (k,)."""
-        cell = self.controller.grid.cell_of(state)
-        if cell is None:
-            return np.zeros(0, dtype=np.int64)
-        return self.controller.safe_input_indices_at(cell, reference, first).astype(np.int64)
-
-    def query(self, state: FloatArray, reference: int, first: bool) -> DecisionQuery:
-        """Return the decision's whole answer at `state` (the cell located once)."""
-        cell = self.controller.grid.cell_of(state)
-        if cell is None:
-            return DecisionQuery(-1, math.inf, np.zeros(0, dtype=np.int64))
-        answer = self.controller.decide_at(cell, reference, first)
-        flat = sum(c * s for c, s in zip(cell, self._strides, strict=True))
-        value = math.inf if answer.value < 0 else float(answer.value)
-        return DecisionQuery(flat, value, answer.inputs.astype(np.int64), answer.staying)
-
-    def contract(
-        self, state: FloatArray, chosen: int, reference: int, first: bool, staying: bool = False
-    ) -> DecisionContract | None:
-        """Return the contract of choosing `chosen` at `state`; None outside the grid."""
-        cell = self.controller.grid.cell_of(state)
-        if cell is None:
-            return None
-        return DecisionContract.of(self.controller, cell, chosen, reference, first, staying)
-
-
-def select_index(
-    safe_inputs: FloatArray, previous: FloatArray, _state: FloatArray | None = None
-) -> int:
-    """Return the row of `safe_inputs` (k, 3) that minimizes the paper's cost J.
-
-    The cost needs only the previous input (3,); the estimated state (3,) other
-    selections take (:mod:`hil.runs.policies`) is not used.
-    """
-    return int(np.argmin(cost(safe_inputs, previous)))
 
 
 def obstacles_from_layout(scenario: Scenario, layout: ObstacleLayout) -> tuple[Obstacle, ...]:

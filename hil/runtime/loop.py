@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import enum
 import math
-from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -28,7 +27,7 @@ from hil.adapters.interfaces import (
     ThrusterSink,
     ThrusterSinkError,
 )
-from hil.controllers.symbolic.selection import wait_index
+from hil.controllers.symbolic import Select, wait_slowest
 from hil.core.arrays import FloatArray
 from hil.core.records import Decision, EventLevel
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
@@ -110,8 +109,8 @@ class Runtime:
         observer: State observer.
         low_level: Velocity controller and thrust allocation.
         resynthesizer: Worker that turns obstacle layouts into controllers.
-        select: The paper's selection among safe inputs: (safe (k, 3), previous (3,)) ->
-            index into the safe rows.
+        select: The choice among the safe inputs (:data:`~hil.controllers.symbolic.Select`:
+            the listed inputs as options -> a row); the paper's J in a plain run.
         log: Where everything is recorded.
         config: Timing and thresholds.
         scenario_hash: Identifies the scenario in every decision record.
@@ -137,13 +136,13 @@ class Runtime:
         observer: Observer,
         low_level: LowLevel,
         resynthesizer: Resynthesizer[SymbolicController],
-        select: Callable[[FloatArray, FloatArray, FloatArray], int],
+        select: Select,
         log: RunLog,
         config: LoopConfig | None = None,
         scenario_hash: str = "",
         estimation_position_m: float = 0.0,
         report_ages: ReportAgeBudget | None = None,
-        wait_select: Callable[[FloatArray, FloatArray, FloatArray], int] = wait_index,
+        wait_select: Select = wait_slowest,
     ) -> None:
         self.world = world
         self.observer = observer
@@ -819,16 +818,15 @@ class Runtime:
             if self._reference_index is None
             else self._reference_index
         )
-        query = controller.query(eta_hat, reference, first)
-        cell, value, indices = query.cell, query.value, query.inputs
-        chosen_index = -1
-        self._note_staying(t_ns, query.staying, eta_hat)
+        answer = controller.decide(
+            eta_hat, reference, first, self._previous_input, self.select, self.wait_select
+        )
+        cell, value, indices, chosen_index = answer.cell, answer.value, answer.inputs, answer.chosen
+        self._note_staying(t_ns, answer.staying, eta_hat)
         if value == 0.0:
             self._at_target(t_ns)
-        elif query.staying:
+        elif answer.staying:
             self.stats.staying_decisions += 1
-            safe = controller.inputs[indices]
-            chosen_index = int(indices[self.wait_select(safe, self._previous_input, eta_hat)])
         elif math.isinf(value):
             self.stats.not_winning_decisions += 1
             state = np.round(eta_hat, 3).tolist()
@@ -850,11 +848,8 @@ class Runtime:
                     f"state {state} still {where} after "
                     f"{self.config.decision_period_s:g} s stopped: no safe input"
                 )
-        elif indices.size:
-            safe = controller.inputs[indices]
-            chosen_index = int(indices[self.select(safe, self._previous_input, eta_hat)])
         chosen = controller.inputs[chosen_index].copy() if chosen_index >= 0 else np.zeros(3)
-        self._not_winning_before = math.isinf(value) and not query.staying
+        self._not_winning_before = math.isinf(value) and not answer.staying
         if value != 0.0 and self.mode is Mode.AT_TARGET:
             self.mode = Mode.RUNNING  # pushed out of the target: steer back in
         self._set_reference(chosen)
@@ -866,9 +861,7 @@ class Runtime:
         self._last_choice_ns = t_ns if chosen_index >= 0 else None
         if chosen_index >= 0:
             self._first_left = max(self._first_left - 1, 0)
-            self.monitor.start(
-                t_ns, controller.contract(eta_hat, chosen_index, reference, first, query.staying)
-            )
+            self.monitor.start(t_ns, answer.contract)
         self.stats.decisions += 1
         self.log.decision(
             Decision.from_arrays(

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from typing import Protocol
 
 from hil.controllers.consistency import ConsistencyBreach
-from hil.controllers.symbolic import DecisionContract
+from hil.controllers.symbolic import Answer, Select
 from hil.core.arrays import FloatArray, IntArray
 from hil.core.records import Decision, EventLevel
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
@@ -37,27 +37,6 @@ class Observer(Protocol):
         """
 
 
-@dataclass(frozen=True, slots=True, eq=False)
-class DecisionQuery:
-    """The controller's whole answer at a decision's state: asked once, cell located once.
-
-    Attributes:
-        cell: Flat cell index of the state, -1 outside the grid.
-        value: Steps to the target (a first decision: what it earns); 0 in the target
-            (hold), +inf where docking is not winning.
-        inputs: Input-grid indices listed, shape (k,): every safe input for docking; where
-            docking is not winning, every input that keeps the vessel in the safety set
-            (`staying`); empty in the target and where nothing is safe.
-        staying: Docking is not winning here but the vessel can stay safe: `inputs` are
-            the safety controller's, to wait on until docking wins again.
-    """
-
-    cell: int
-    value: float
-    inputs: IntArray
-    staying: bool = False
-
-
 class SymbolicController(Protocol):
     """A synthesized controller over (cell, reference in force): values and safe inputs."""
 
@@ -76,17 +55,21 @@ class SymbolicController(Protocol):
     def safe_input_indices(self, state: FloatArray, reference: int, first: bool) -> IntArray:
         """Return the input-grid indices of every safe input at `state`, shape (k,)."""
 
-    def query(self, state: FloatArray, reference: int, first: bool) -> DecisionQuery:
-        """Return everything a decision at `state` with `reference` in force needs."""
+    def decide(
+        self,
+        state: FloatArray,
+        reference: int,
+        first: bool,
+        previous: FloatArray,
+        select: Select,
+        wait_select: Select,
+    ) -> Answer:
+        """Take the decision at `state` with `reference` in force, the cell located once.
 
-    def contract(
-        self, state: FloatArray, chosen: int, reference: int, first: bool, staying: bool = False
-    ) -> DecisionContract | None:
-        """Return what choosing input `chosen` at `state` promises (tube, successor, value).
-
-        `staying`: a safety-controller decision (its end promised in the safety set).
-        None when `state` is outside the grid. Built once per decision; the runtime
-        monitor judges every tick's estimate with it.
+        Returns cell, value, the inputs listed, the one `select` chooses (`wait_select`
+        where docking is not winning but the vessel can stay safe) and its contract
+        (:meth:`hil.controllers.symbolic.SymbolicAdapter.decide`); the runtime monitor
+        judges every tick's estimate with the contract.
         """
 
     @property

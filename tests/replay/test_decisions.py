@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from hil.bag.run_data import load_run
-from hil.controllers.symbolic import wait_index
+from hil.controllers.symbolic import cost
 from hil.core.records import Decision
 from hil.replay.controllers import ScenarioCache
 from hil.replay.decisions import (
@@ -72,7 +72,7 @@ def test_recompute_waits_where_docking_is_lost_but_the_state_is_safe(
     assert not got.winning
     listed = np.array(got.safe)
     np.testing.assert_array_equal(listed, np.sort(c.staying_input_indices_at((i, j, k), rest)))
-    assert got.chosen == int(listed[wait_index(c.inputs[listed])])
+    assert got.chosen == int(listed[np.argmin(cost(c.inputs[listed], np.zeros(3)))])  # J at rest
     recorded = Decision.from_arrays(
         1_000_000_000, state, adapter.locate(state), got.value, False, c.inputs[listed],
         listed, got.chosen, 1, "h", reference_index=rest,

@@ -25,6 +25,7 @@ from hil.bag.messages import Record
 from hil.bag.reader import BagReader
 from hil.bag.run_data import load_run
 from hil.commands.record_suite import SuiteRun, record_run
+from hil.controllers.symbolic import SymbolicAdapter
 from hil.core.records import Decision
 from hil.core.samples import PoseSample
 from hil.replay.controllers import ScenarioCache
@@ -40,7 +41,6 @@ from hil.replay.decisions import (
 from hil.replay.regression import Status, summary_json
 from hil.replay.resim import MANIFEST, recorded_spec
 from hil.runs.sim_run import SimRunSpec, spec_to_json
-from hil.runtime.assembly import SymbolicAdapter
 from hil.scenarios import load_scenario
 from tests.replay.suite_logs import LOGS, REFERENCE, replay_unmodified, rewrite
 

@@ -12,8 +12,10 @@ import json
 
 import numpy as np
 import pytest
+from numpy.typing import NDArray
 
 from hil.cli import main
+from hil.controllers.symbolic import Options
 from hil.runs.guarantee import judged_run
 from hil.runs.policies import POLICIES, arc_clearance, policies_of, policy
 from hil.runs.sim_run import SimRunSpec, simulate, spec_from_json, spec_to_json
@@ -29,19 +31,27 @@ SAFE = np.array([
     [0.00, 0.00, 0.0],
 ])
 STATE = np.zeros(3)
+SUCCESSOR_VALUES = np.array([3, 5, 5, 1])
+
+
+def _options(previous: NDArray[np.float64], safe: NDArray[np.float64] = SAFE,
+             state: NDArray[np.float64] = STATE) -> Options:
+    return Options(safe, np.arange(len(safe)), SUCCESSOR_VALUES[: len(safe)], previous, state)
 
 
 def test_each_policy_picks_what_its_name_says() -> None:
     previous = np.array([0.10, 0.05, 0.1])
-    assert policy("largest-change", 0, STEPS)(SAFE, previous, STATE) == 2  # 1 + 2 + 2 steps
-    assert policy("largest-change", 0, STEPS)(SAFE, np.zeros(3), STATE) == 1  # 4 + 1 + 1 steps
-    assert policy("zigzag", 0, STEPS)(SAFE, previous, STATE) == 2  # sway and yaw reversed
-    assert policy("fastest", 0, STEPS)(SAFE, previous, STATE) == 1
-    draws = [policy("random", 7, STEPS)(SAFE, previous, STATE) for _ in range(3)]
-    again = [policy("random", 7, STEPS)(SAFE, previous, STATE) for _ in range(3)]
+    now, rest = _options(previous), _options(np.zeros(3))
+    assert policy("largest-change", 0, STEPS)(now) == 2  # 1 + 2 + 2 steps
+    assert policy("largest-change", 0, STEPS)(rest) == 1  # 4 + 1 + 1 steps
+    assert policy("zigzag", 0, STEPS)(now) == 2  # sway and yaw reversed
+    assert policy("fastest", 0, STEPS)(now) == 1
+    assert policy("slowest", 0, STEPS)(now) == 1  # successors up to value 5, the first of two
+    draws = [policy("random", 7, STEPS)(now) for _ in range(3)]
+    again = [policy("random", 7, STEPS)(now) for _ in range(3)]
     assert draws == again  # seeded: the same run is the same on every machine
     mixed = policy("mixed", 3, STEPS, load_scenario("coarse"))
-    assert all(0 <= mixed(SAFE, previous, STATE) < len(SAFE) for _ in range(20))
+    assert all(0 <= mixed(now) < len(SAFE) for _ in range(20))
 
 
 def test_closest_flies_the_arc_nearest_an_obstacle_or_a_wall() -> None:
@@ -57,7 +67,7 @@ def test_closest_flies_the_arc_nearest_an_obstacle_or_a_wall() -> None:
     assert clearance[0] == pytest.approx(x1 - bow, abs=1e-9)
     assert clearance[2] == pytest.approx(x1 - bow, abs=1e-9)
     assert clearance[1] == pytest.approx(x1 - bow - 0.1 * scenario.tau_s, abs=1e-9)
-    assert policy("closest", 0, STEPS, scenario)(safe, np.zeros(3), state) == 1
+    assert policy("closest", 0, STEPS, scenario)(_options(np.zeros(3), safe, state)) == 1
 
 
 def test_policy_names_are_checked() -> None:

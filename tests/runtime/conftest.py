@@ -6,8 +6,9 @@ from pathlib import Path
 
 import pytest
 
+from hil.controllers.symbolic import SymbolicAdapter
 from hil.runs.stack_assembly import synthesizer_for
-from hil.runtime.assembly import LayoutSolver, SymbolicAdapter, layout_from_scenario
+from hil.runtime.assembly import LayoutSolver, layout_from_scenario
 from hil.scenarios import Scenario, load_scenario
 
 

@@ -11,8 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from hil.controllers.symbolic import DecisionContract
-from hil.runtime.protocols import DecisionQuery
+from hil.controllers.symbolic import Answer, Select
 
 F = NDArray[np.float64]
 I64 = NDArray[np.int64]
@@ -48,15 +47,21 @@ class ScriptedController:
         self.decisions += 1
         return np.array([i], dtype=np.int64)
 
-    def query(self, state: F, reference: int, first: bool) -> DecisionQuery:
-        """The next row of the script, one step from the target."""
-        return DecisionQuery(0, 1.0, self.safe_input_indices(state, reference, first))
+    def decide(
+        self,
+        state: F,
+        reference: int,
+        first: bool,
+        previous: F,
+        select: Select,
+        wait_select: Select,
+    ) -> Answer:
+        """Fly the next row of the script, one step from the target, promising nothing.
 
-    def contract(
-        self, state: F, chosen: int, reference: int, first: bool, staying: bool = False
-    ) -> DecisionContract | None:
-        """Promise nothing: the runtime monitor judges no tick (no symbolic abstraction)."""
-        return None
+        No contract: the runtime monitor judges no tick (no symbolic abstraction).
+        """
+        i = int(self.safe_input_indices(state, reference, first)[0])
+        return Answer(0, 1.0, np.array([i], dtype=np.int64), False, i, None)
 
 
 def exact_arc(start: F, u: F, t: F) -> tuple[F, F]:

@@ -19,9 +19,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hil.adapters.sim import SimConfig, SimWorld
+from hil.controllers.symbolic import SymbolicAdapter
 from hil.core.samples import ObstacleLayout
 from hil.runs.stack_assembly import build_runtime, default_start, synthesizer_for
-from hil.runtime.assembly import SymbolicAdapter, layout_from_scenario
+from hil.runtime.assembly import layout_from_scenario
 from hil.runtime.loop import Runtime, World
 from hil.runtime.protocols import SymbolicController
 from hil.runtime.resynthesis import (

@@ -70,7 +70,7 @@ def _fly(refs: F, seed: int) -> tuple[MemoryLog, F]:
         World(world.clock, world.pose, world.imu, world.obstacles, world.thrusters),
         EkfObserver(estimation_bound_m=scenario.transient.estimation_position_m),
         low_level_for(loop.loop_hz),
-        Resynthesizer(solve, ResynthesisMode.INLINE), lambda safe, previous, state: 0, log, loop,
+        Resynthesizer(solve, ResynthesisMode.INLINE), lambda options: 0, log, loop,
         estimation_position_m=scenario.transient.estimation_position_m,
     )
     runtime.run()

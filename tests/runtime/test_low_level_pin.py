@@ -76,7 +76,7 @@ def run_runtime(refs: F) -> tuple[MemoryLog, SimWorld, ScriptedController]:
         TrueVelocity(world),
         low_level_for(loop.loop_hz),
         Resynthesizer(solve, ResynthesisMode.INLINE),
-        lambda safe, previous, state: 0,
+        lambda options: 0,
         log,
         loop,
     )

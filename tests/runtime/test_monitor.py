@@ -21,12 +21,12 @@ from numpy.typing import NDArray
 
 from hil.adapters.sim import SimConfig, SimWorld
 from hil.controllers.consistency import ConsistencyBreach
-from hil.controllers.symbolic import DecisionContract
+from hil.controllers.symbolic import DecisionContract, SymbolicAdapter
 from hil.core.records import EventLevel
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample
 from hil.runs.guarantee import judge_run
 from hil.runs.stack_assembly import build_runtime, default_start, synthesizer_for
-from hil.runtime.assembly import EkfObserver, SymbolicAdapter, layout_from_scenario
+from hil.runtime.assembly import EkfObserver, layout_from_scenario
 from hil.runtime.loop import Runtime, World
 from hil.runtime.monitor import Monitor
 from hil.runtime.resynthesis import ResynthesisMode

@@ -21,10 +21,11 @@ import numpy as np
 import pytest
 
 from hil.adapters.sim import ObstacleMotion, SimConfig, SimWorld
+from hil.controllers.symbolic import SymbolicAdapter
 from hil.core.records import EventLevel
 from hil.core.samples import ObstacleLayout
 from hil.runs.stack_assembly import build_runtime, default_start, synthesizer_for
-from hil.runtime.assembly import SymbolicAdapter, layout_from_scenario
+from hil.runtime.assembly import layout_from_scenario
 from hil.runtime.loop import Runtime, World
 from hil.runtime.protocols import SymbolicController
 from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer, VesselState

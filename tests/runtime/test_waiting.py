@@ -2,9 +2,8 @@
 
 A scripted controller answers decisions 0-1 for docking, 2-4 with staying inputs only
 (docking not winning, the vessel can stay safe), then for docking again: the loop must
-fly the waiting choice among the staying inputs, say when docking was lost and when it
-is back, promise the staying decisions' ends in the safety set (their contracts), and
-not stop the vessel.
+hand the decision its waiting choice (the slowest by default) for the staying inputs,
+say when docking was lost and when it is back, and not stop the vessel.
 """
 
 from __future__ import annotations
@@ -15,12 +14,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hil.adapters.sim import SimConfig, SimWorld
-from hil.controllers.symbolic import DecisionContract, wait_index
+from hil.controllers.symbolic import Answer, Options, Select, wait_slowest
 from hil.core.samples import ObstacleLayout
 from hil.runtime.assembly import low_level_for
 from hil.runtime.events import EventCode
 from hil.runtime.loop import Runtime, World
-from hil.runtime.protocols import DecisionQuery
 from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer
 from hil.runtime.settings import LoopConfig
 from hil.runtime.trace import MemoryLog
@@ -55,18 +53,24 @@ class WaitingController:
     def safe_input_indices(self, state: F, reference: int, first: bool) -> NDArray[np.int64]:
         return np.array([3], dtype=np.int64)
 
-    def query(self, state: F, reference: int, first: bool) -> DecisionQuery:
+    def decide(
+        self,
+        state: F,
+        reference: int,
+        first: bool,
+        previous: F,
+        select: Select,
+        wait_select: Select,
+    ) -> Answer:
         n = self.decisions
         self.decisions += 1
-        if STAYING[0] <= n < STAYING[1]:
-            return DecisionQuery(0, math.inf, np.array([1, 2], dtype=np.int64), staying=True)
-        return DecisionQuery(0, 3.0, np.array([3], dtype=np.int64))
-
-    def contract(
-        self, state: F, chosen: int, reference: int, first: bool, staying: bool = False
-    ) -> DecisionContract | None:
+        staying = STAYING[0] <= n < STAYING[1]
+        indices = np.array([1, 2] if staying else [3], dtype=np.int64)
+        pick = wait_select if staying else select
+        options = Options(INPUTS[indices], indices, np.full(indices.size, -1), previous, state)
         self.contracts.append(staying)
-        return None
+        value = math.inf if staying else 3.0
+        return Answer(0, value, indices, staying, int(indices[pick(options)]), None)
 
 
 def test_a_lost_docking_is_waited_out_on_the_staying_inputs() -> None:
@@ -85,7 +89,7 @@ def test_a_lost_docking_is_waited_out_on_the_staying_inputs() -> None:
     runtime = Runtime(
         World(world.clock, world.pose, world.imu, world.obstacles, world.thrusters),
         TrueVelocity(world), low_level_for(loop.loop_hz),
-        Resynthesizer(solve, ResynthesisMode.INLINE), lambda safe, previous, state: 0, log, loop,
+        Resynthesizer(solve, ResynthesisMode.INLINE), lambda options: 0, log, loop,
     )  # fmt: skip
     stats = runtime.run()
 
@@ -99,7 +103,10 @@ def test_a_lost_docking_is_waited_out_on_the_staying_inputs() -> None:
     assert codes.count(EventCode.DOCKING_BACK.value) == 1
     assert codes.index(EventCode.DOCKING_LOST.value) < codes.index(EventCode.DOCKING_BACK.value)
     chosen = [d.chosen_index for d in log.decisions]
-    waiting = int([1, 2][wait_index(INPUTS[[1, 2]])])
+    staying = np.array([1, 2])
+    waiting = int(staying[wait_slowest(Options(INPUTS[staying], staying, -np.ones(2, int),
+                                               np.zeros(3), np.zeros(3)))])
+    assert waiting == 1  # the slower of the two by J against rest: the runtime's default
     assert chosen == [3, 3, waiting, waiting, 3, 3]
     assert [d.staying for d in log.decisions] == [False, False, True, True, False, False]
     assert controller.contracts == [False, False, True, True, False, False]

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -93,11 +93,14 @@ class CellDecision:
             (`staying`); none in the target (hold) or where nothing is safe.
         staying: Docking is not winning and `inputs` keep the vessel in the safety set
             (:mod:`~hil.controllers.symbolic.safety`): wait there until docking wins again.
+        successor_values: Per listed input, the largest value among its successor
+            cells, shape (n,); -1 for staying inputs (they promise the safety set).
     """
 
     value: int
     inputs: I32Array
     staying: bool = False
+    successor_values: I32Array = field(default_factory=lambda: np.empty(0, dtype=np.int32))
 
 
 class Controller:
@@ -143,6 +146,7 @@ class Controller:
         m, npsi, nw, _, nx = planes.shape
         self._no_planes = np.zeros((m, npsi, nw, 0, nx), dtype=np.uint64)
         self._best = np.empty(1, dtype=np.int32)
+        self._worsts = np.empty(tables.n_inputs, dtype=np.int32)
         self.rest_index = lattice.nearest(np.zeros(3))
         rest_values = self.layer_values(self.rest_index)
         rest_values.flags.writeable = False
@@ -299,6 +303,7 @@ class Controller:
             first,
             self._out,
             self._best,
+            self._worsts,
         )
         return self._out[:n].copy()
 
@@ -350,9 +355,9 @@ class Controller:
                 else np.empty(0, dtype=np.int32)
             )
         if value >= 0:
-            return CellDecision(value, inputs)
+            return CellDecision(value, inputs, False, self._worsts[: inputs.size].copy())
         staying = self.staying_input_indices_at(cell, previous, first)
-        return CellDecision(-1, staying, staying.size > 0)
+        return CellDecision(-1, staying, staying.size > 0, np.full(staying.size, -1, np.int32))
 
     def staying_input_indices_at(
         self, cell: tuple[int, int, int], previous: int | None = None, first: bool = False

@@ -114,6 +114,7 @@ def safe_input_indices(
     first: bool,
     out: I32Array,
     best: I32Array,
+    worsts: I32Array,
     any_only: bool = False,
 ) -> int:
     """Write the safe inputs at cell (i, j, k) with reference p in force to `out`; return n.
@@ -124,7 +125,8 @@ def safe_input_indices(
     layer with a value strictly below the state's (any value with `first`). None at a
     losing or target state (unless `first`, where the state's own value is not used).
     best[0] is set to 1 + the least, over the safe inputs, of their largest successor
-    value (the value a first decision earns), -1 with none.
+    value (the value a first decision earns), -1 with none; worsts[n] to the n-th safe
+    input's largest successor value.
     """
     best[0] = -1
     vc = state_value(W, planes, pads, p, i, j, k)
@@ -145,6 +147,7 @@ def safe_input_indices(
         worst = _worst_successor(W, planes, pads, succ, heading, ny, cls, u, i, j, k, limit)
         if worst >= 0:
             out[n] = u
+            worsts[n] = worst
             n += 1
             if best[0] < 0 or worst + 1 < best[0]:
                 best[0] = worst + 1
@@ -249,13 +252,14 @@ def first_decision_cells(
     npsi, nx = planes.shape[1], planes.shape[4]
     out = np.zeros((nx, ny, npsi), dtype=np.bool_)
     found = np.empty(neighbours.shape[1] + 1, dtype=np.int32)
+    worsts = np.empty(neighbours.shape[1] + 1, dtype=np.int32)
     best = np.empty(1, dtype=np.int32)
     for i in range(nx):
         for j in range(ny):
             for k in range(npsi):
                 safe_input_indices(
                     W, planes, viable, pads, succ, heading, neighbours, n_neighbours, ny,
-                    p, i, j, k, True, found, best, True,
+                    p, i, j, k, True, found, best, worsts, True,
                 )  # fmt: skip
                 out[i, j, k] = best[0] >= 0
     return out

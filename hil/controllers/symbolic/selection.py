@@ -13,7 +13,7 @@ import numpy as np
 from hil.controllers.symbolic.errors import EmptyInputSetError
 from hil.core.arrays import FloatArray
 
-__all__ = ["W_BACKWARD", "W_FORWARD", "cost", "select", "wait_index"]
+__all__ = ["W_BACKWARD", "W_FORWARD", "cheapest", "cost", "select"]
 
 W_BACKWARD: FloatArray = np.array([7.5, 3.0, 1.0, 1.0, 1.0, 2.5])
 """Diagonal of W for inputs with negative surge."""
@@ -36,6 +36,11 @@ def cost(candidates: FloatArray, previous: FloatArray | None = None) -> FloatArr
     return out
 
 
+def cheapest(candidates: FloatArray, previous: FloatArray | None = None) -> int:
+    """Return the row of `candidates` (n >= 1, 3) that minimizes J; the first one on ties."""
+    return int(np.argmin(cost(candidates, previous)))
+
+
 def select(safe_inputs: FloatArray, previous: FloatArray | None = None) -> FloatArray:
     """Return argmin J over the safe inputs, shape (3,); the first one on ties.
 
@@ -45,20 +50,5 @@ def select(safe_inputs: FloatArray, previous: FloatArray | None = None) -> Float
     sigma = np.asarray(safe_inputs, dtype=np.float64).reshape(-1, 3)
     if sigma.shape[0] == 0:
         raise EmptyInputSetError(f"no safe input to select from (previous {previous!r})")
-    out: FloatArray = sigma[int(np.argmin(cost(sigma, previous)))].copy()
+    out: FloatArray = sigma[cheapest(sigma, previous)].copy()
     return out
-
-
-def wait_index(
-    staying_inputs: FloatArray,
-    _previous: FloatArray | None = None,
-    _state: FloatArray | None = None,
-) -> int:
-    """Return the row of `staying_inputs` (k, 3) a waiting vessel flies: the slowest by J.
-
-    Waiting on the safety controller (docking not winning), the vessel slows toward
-    rest: J against rest (previous input zero) weighs speed with the paper's weights
-    (backward and sway dearer), and the lattice keeps each change to one step. The
-    previous input and the state, which other selections take, are not used.
-    """
-    return int(np.argmin(cost(staying_inputs, np.zeros(3))))
