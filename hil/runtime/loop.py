@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import enum
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -30,13 +30,14 @@ from hil.adapters.interfaces import (
 from hil.controllers.symbolic import Select, wait_slowest
 from hil.core.arrays import FloatArray
 from hil.core.records import Decision, EventLevel
-from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
+from hil.core.samples import ImuSample, PoseSample, ThrusterCommand
 from hil.core.transient import LATE_S, START_PERIODS
+from hil.runtime.controller_slot import ControllerSlot, Swap
 from hil.runtime.events import EventCode
 from hil.runtime.monitor import Monitor, Violation
 from hil.runtime.protocols import LowLevel, Observer, RunLog, SymbolicController
 from hil.runtime.report_age import ReportAgeBudget
-from hil.runtime.resynthesis import Resynthesizer, SynthesisResult, VesselState
+from hil.runtime.resynthesis import Resynthesizer, VesselState
 from hil.runtime.settings import NS_PER_S, LoopConfig
 from hil.runtime.stats import RunStats
 
@@ -82,23 +83,6 @@ class World:
     imu: ImuSource
     obstacles: ObstacleSource
     thrusters: ThrusterSink
-
-
-def layout_covers(old: ObstacleLayout, new: ObstacleLayout) -> bool:
-    """Whether every obstacle of `new` lies inside some obstacle of `old`.
-
-    Then a controller synthesized for `old` avoids `new` as well and stays valid.
-    """
-    return all(
-        any(
-            o.x_min_m <= n.x_min_m
-            and n.x_max_m <= o.x_max_m
-            and o.y_min_m <= n.y_min_m
-            and n.y_max_m <= o.y_max_m
-            for o in old.obstacles
-        )
-        for n in new.obstacles
-    )
 
 
 class Runtime:
@@ -147,29 +131,21 @@ class Runtime:
         self.world = world
         self.observer = observer
         self.low_level = low_level
-        self.resynthesizer = resynthesizer
         self.select = select
         self.wait_select = wait_select
         self.log = log
         self.config = config or LoopConfig()
         self.scenario_hash = scenario_hash
         self.report_ages = report_ages or ReportAgeBudget(1.0, tracks=False)
-        self._obstacles_stale = False
         self.stats = RunStats()
         self.monitor = Monitor(estimation_position_m, 1.0 / self.config.loop_hz)
         self.mode = Mode.WAITING
-        self.controller: SymbolicController | None = None
-        self.controller_version = 0
-        # The report the controller in force relies on, and the age it was solved for.
-        self._controller_layout: ObstacleLayout | None = None
-        self._controller_age_s = self.report_ages.stated_s
-        # An early controller of the synthesis still running (it covers the state the
-        # vessel was in at submission and every state of a lower value), with its
-        # version and layout; taken for a decision only where it covers the state.
-        self._early: SynthesisResult[SymbolicController] | None = None
-        self._in_force_early = False  # the controller in force is such an early one
-        self._submitted_layout: ObstacleLayout | None = None
-        self._last_submit_ns: int | None = None
+        self._start_ns = world.clock.now_ns()
+        self.slot = ControllerSlot(
+            world.obstacles, resynthesizer, self.report_ages, log, self.stats, self._event,
+            self.config.resynthesis_period_s, self._start_ns,
+        )  # fmt: skip
+        """The controller in force and the obstacle report it relies on."""
         self._last_pose_ns: int | None = None
         self._next_decision_ns = 0
         self._last_choice_ns: int | None = None  # when the input in force was chosen
@@ -183,7 +159,6 @@ class Runtime:
         self._first_left = START_PERIODS
         self._estimating_since_ns: int | None = None
         self._consecutive_sink_failures = 0
-        self._start_ns = world.clock.now_ns()
         self.stats.start_ns = self._start_ns
         self._target_since_ns = 0
         self._stop_requested: str | None = None
@@ -197,6 +172,21 @@ class Runtime:
         self._staying = False  # the last decision was the safety controller's
 
     # -- public -----------------------------------------------------------------------
+
+    @property
+    def controller(self) -> SymbolicController | None:
+        """The controller in force (:attr:`slot`)."""
+        return self.slot.controller
+
+    @property
+    def resynthesizer(self) -> Resynthesizer[SymbolicController]:
+        """The worker that turns obstacle layouts into controllers (:attr:`slot`'s)."""
+        return self.slot.resynthesizer
+
+    @property
+    def controller_version(self) -> int:
+        """The version of the controller in force."""
+        return self.slot.version
 
     def request_stop(self, reason: str) -> None:
         """Ask the loop to stop at the next tick (safe from a signal handler).
@@ -213,7 +203,7 @@ class Runtime:
         period = self.config.period_ns
         next_tick = clock.now_ns()
         # The run (and its time limit) starts now, after any warm-up since construction.
-        self._start_ns = self.stats.start_ns = next_tick
+        self._start_ns = self.stats.start_ns = self.slot.start_ns = next_tick
         try:
             while self.mode not in (Mode.DOCKED, Mode.STOPPED):
                 now = clock.now_ns()
@@ -234,7 +224,7 @@ class Runtime:
         """Run one loop iteration at time `t_ns`."""
         self._ingest(t_ns)
         self._check_estimate(t_ns)
-        self._watch_obstacles(t_ns)
+        self.slot.watch(t_ns, self.mode is Mode.BRAKING, self._vessel_state)
         self._swap_controller(t_ns)
         if self.mode is not Mode.BRAKING and self._check_stop(t_ns) and self.mode is Mode.STOPPED:
             return
@@ -253,7 +243,9 @@ class Runtime:
         if self._estimating_since_ns is None:
             self._estimating_since_ns = t_ns
         if t_ns >= self._next_decision_ns and self._observer_settled(t_ns):
-            self._take_early(t_ns, eta_hat)
+            self.slot.take_early(
+                t_ns, eta_hat, self._reference_index if self._first_left == 0 else None
+            )
             self._check_late(t_ns)
             # A stale obstacle report leaves the decision due: taken once a fresher one is in.
             if self._ready_to_decide(t_ns):
@@ -338,52 +330,6 @@ class Runtime:
                 f"observer rejected {what} ({n} so far)",
             )
 
-    def _watch_obstacles(self, t_ns: int) -> None:
-        layout = self.world.obstacles.latest()
-        submitted = self._submitted_layout
-        changed = submitted is None or layout.obstacles != submitted.obstacles
-        # With obstacles that move, a controller is good for a bounded age of its report:
-        # a fresher report of the same shapes renews that report's stamp (the one the
-        # staleness check measures from) without a synthesis, the controller being the same.
-        renewed = (
-            not changed
-            and self.report_ages.tracks
-            and submitted is not None
-            and layout.t_ns > submitted.t_ns
-        )
-        if (changed or renewed) and self.report_ages.tracks:
-            self.report_ages.reported(layout.t_ns if layout.t_ns >= self._start_ns else t_ns)
-        if changed or renewed:
-            # Every report taken in is recorded, a renewal too: a replay re-runs the stack
-            # on this stream and must see the report time each decision relied on. A
-            # layout known before the run (the scenario's, stamped 0) is recorded when the
-            # run first sees it, so that every topic of the log shares the run's clock.
-            self.log.obstacles(
-                layout if layout.t_ns >= self._start_ns else replace(layout, t_ns=t_ns)
-            )
-        if renewed:
-            self._renew(layout, t_ns)
-        period = self.config.resynthesis_period_s
-        timer_due = (
-            period is not None
-            and self._last_submit_ns is not None
-            and t_ns - self._last_submit_ns >= period * NS_PER_S
-        )
-        if not (changed or timer_due) or self.mode is Mode.BRAKING:
-            return  # (braking to rest needs no new controller; reports are still recorded)
-        if self.resynthesizer.busy and not changed:
-            self._event(
-                t_ns,
-                EventLevel.WARN,
-                EventCode.SYNTHESIS_OVERRUN,
-                f"synthesis slower than {period} s; keeping controller v{self.controller_version}",
-            )
-            self._last_submit_ns = t_ns
-            return
-        self._submitted_layout = layout
-        self._last_submit_ns = t_ns
-        self.resynthesizer.submit(layout, self.report_ages.next_s(), self._vessel_state())
-
     def _vessel_state(self) -> VesselState | None:
         """Return the state an early controller must cover: mid-run, the reference in force.
 
@@ -398,156 +344,14 @@ class Runtime:
             return None
         return VesselState(estimate[0].copy(), self._reference_index)
 
-    def _renew(self, layout: ObstacleLayout, t_ns: int) -> None:
-        """Take a fresher report of the submitted shapes as the newest, without synthesis.
-
-        The controller in force, when synthesized for the same shapes, now relies on this
-        report: its age is measured from `layout`'s stamp. A synthesis of these shapes
-        still running finishes with the renewed stamp (:meth:`_swap_controller`).
-        """
-        self._submitted_layout = layout
-        current = self._controller_layout
-        if current is not None and current.obstacles == layout.obstacles:
-            self._rely_on(layout, self._controller_age_s, t_ns)
-
-    def _rely_on(
-        self,
-        layout: ObstacleLayout,
-        report_age_s: float,
-        t_ns: int,
-        solved: ObstacleLayout | None = None,
-    ) -> None:
-        """Let decisions rely on `layout`'s report (solved for `report_age_s`) from `t_ns` on.
-
-        `solved`: the report a controller put in force now was solved from (`layout` is
-        a renewal of it, or itself); None for a renewal of the controller in force. The
-        latency of a controller put in force and the age the report relied on so far had
-        when this fresher one took over are what a measured report age is made of
-        (:class:`ReportAgeBudget`).
-        """
-        current = self._controller_layout
-        if solved is not None and (current is None or solved.obstacles != current.obstacles):
-            # Only a new layout's latency counts: the same shapes again (a timer's
-            # re-synthesis) are renewed by every report, whatever their solve took.
-            self.report_ages.in_force(solved.t_ns, t_ns)
-        if current is not None and layout.t_ns > current.t_ns:
-            self.report_ages.superseded(current.t_ns, t_ns)
-        self._controller_layout = layout
-        self._controller_age_s = report_age_s
-        if self.report_ages.tracks:
-            s = self.stats
-            s.report_age_relied_s = self.report_ages.largest_age_s
-            s.report_age_solved_s = max(s.report_age_solved_s, report_age_s)
-
-    def _warn_if_stale_on_arrival(self, t_ns: int, version: int, seconds: float) -> None:
-        """Say when a controller for moving obstacles arrives older than its report may be.
-
-        Its decisions would all be refused (``obstacles_stale``) unless a fresher report
-        of the same shapes renews it: with obstacles that keep moving, a synthesis slower
-        than the report age it was solved for never yields a usable controller.
-        """
-        max_age = self._controller_age_s
-        layout = self._controller_layout
-        if not self.report_ages.tracks or layout is None:
-            return
-        age_s = (t_ns - layout.t_ns) / NS_PER_S
-        if age_s <= max_age:
-            return
-        remedy = (
-            "the next layouts are solved for the age measured "
-            f"(now {self.report_ages.next_s():g} s)"
-            if self.report_ages.measured
-            else 'with obstacles that keep moving, set [obstacle_motion] report_age = "measured" '
-            "(or raise max_report_age_s above the synthesis time), or give the synthesis "
-            "more cores ([loop] synthesis_threads)"
-        )
-        self._event(
-            t_ns,
-            EventLevel.WARN,
-            EventCode.SYNTHESIS_OVERRUN,
-            f"controller v{version} arrived {age_s:.2f} s after its obstacle report "
-            f"(synthesis {seconds:.2f} s), older than the {max_age:g} s it was solved for: "
-            f"usable only once a fresher report of the same shapes renews it; {remedy}",
-        )
-
     def _swap_controller(self, t_ns: int) -> None:
-        result = self.resynthesizer.poll()
-        if result is None:
-            return
-        if result.controller is not None and not result.complete:
-            self._early = result
-            self._event(
-                t_ns,
-                EventLevel.DEBUG,
-                EventCode.CONTROLLER_READY,
-                f"controller v{result.version} early in {result.seconds:.3f} s: it covers the "
-                "vessel's state and every state of a lower value; the full solve goes on",
-            )
-            return
-        self._early = None
-        self._in_force_early = False
-        if result.controller is not None:
-            self.controller = result.controller
-            self.controller_version = result.version
-            # A fresher report of the same shapes may have come in while it was solved:
-            # the controller relies on the newest (renewed) one.
-            self._rely_on(
-                self._renewed(result.layout), result.report_age_s, t_ns, solved=result.layout
-            )
-            self._warn_if_stale_on_arrival(t_ns, result.version, result.seconds)
-            self.stats.resyntheses += 1
-            self.stats.synthesis_seconds.append(result.seconds)
-            if self.mode is Mode.WAITING:
-                self.mode = Mode.RUNNING
-                self._next_decision_ns = t_ns
-            self._event(
-                t_ns,
-                EventLevel.DEBUG,
-                EventCode.CONTROLLER_READY,
-                f"controller v{result.version} in {result.seconds:.3f} s",
-            )
-            return
-        self.stats.failed_syntheses += 1
-        still_valid = self._controller_layout is not None and layout_covers(
-            self._controller_layout, result.layout
-        )
-        if still_valid:
-            self._event(
-                t_ns,
-                EventLevel.WARN,
-                EventCode.SYNTHESIS_FAILED,
-                f"{result.error}; keeping controller v{self.controller_version}, "
-                "which still avoids the new layout",
-            )
-            return
-        self.controller = None
-        self._event(
-            t_ns,
-            EventLevel.ERROR,
-            EventCode.SYNTHESIS_FAILED,
-            f"{result.error}; no valid controller, stopping the vessel",
-        )
-        self._abort = f"synthesis failed ({result.error}); no controller to go on with"
-
-    def _take_early(self, t_ns: int, eta_hat: FloatArray) -> None:
-        """Put the early controller in force when it covers this (non-first) decision.
-
-        It then answers exactly as the full one will: the state's value is at most the
-        level it was solved to, so every successor it relies on is final.
-        """
-        early = self._early
-        reference = self._reference_index
-        if early is None or early.controller is None or reference is None:
-            return
-        if self._first_left > 0 or math.isinf(early.controller.value(eta_hat, reference, False)):
-            return
-        self._early = None
-        self._in_force_early = True
-        self.controller = early.controller
-        self.controller_version = early.version
-        self._rely_on(self._renewed(early.layout), early.report_age_s, t_ns, solved=early.layout)
-        self._warn_if_stale_on_arrival(t_ns, early.version, early.seconds)
-        self.stats.early_controllers += 1
+        """Take what the re-synthesis returned: the first controller starts the run."""
+        swap, why = self.slot.swap(t_ns)
+        if swap is Swap.IN_FORCE and self.mode is Mode.WAITING:
+            self.mode = Mode.RUNNING
+            self._next_decision_ns = t_ns
+        elif swap is Swap.LOST:
+            self._abort = why
 
     def _ready_to_decide(self, t_ns: int) -> bool:
         """Return whether a decision may be taken now; else the reference goes to zero.
@@ -556,7 +360,7 @@ class Runtime:
         any input into the winning set, at any value); a decision whose obstacle report
         is too old waits for a fresher one (:meth:`_obstacles_fresh`).
         """
-        if self._in_force_early and (self._reference_index is None or self._first_left > 0):
+        if self.slot.in_force_early and (self._reference_index is None or self._first_left > 0):
             self._reference_index = None
             self.monitor.clear()
             self._set_reference(np.zeros(3))
@@ -591,17 +395,6 @@ class Runtime:
         )
         self._reference_index = None
         self.monitor.clear()
-
-    def _renewed(self, layout: ObstacleLayout) -> ObstacleLayout:
-        """Return the newest report of `layout`'s shapes (a renewal while it was solved)."""
-        submitted = self._submitted_layout
-        if (
-            submitted is not None
-            and submitted.obstacles == layout.obstacles
-            and submitted.t_ns > layout.t_ns
-        ):
-            return submitted
-        return layout
 
     def _check_stop(self, t_ns: int) -> bool:
         if self._abort is not None:
@@ -725,38 +518,11 @@ class Runtime:
     def _obstacles_fresh(self, t_ns: int) -> bool:
         """Return whether a decision may rely on the controller's obstacle report; else stop.
 
-        With obstacles that move, the synthesis avoided where they may be up to A + tau
-        + late after their report (A: the report age the controller was solved for); a
-        decision later than A after it is not covered. Then the velocity reference goes to
-        zero (``obstacles_stale``, once per episode) and the next decision, once a
-        fresher report is in (renewing the controller's stamp, or its shapes' controller
-        synthesized), is a first decision.
+        Too old a report (:meth:`ControllerSlot.fresh`): the velocity reference goes to
+        zero and the next decision, once a fresher report is in, is a first decision.
         """
-        max_age = self._controller_age_s
-        layout = self._controller_layout
-        if not self.report_ages.tracks or layout is None or self.controller is None:
+        if self.slot.fresh(t_ns):
             return True
-        age_s = (t_ns - layout.t_ns) / NS_PER_S
-        if age_s <= max_age:
-            if self._obstacles_stale:
-                self._obstacles_stale = False
-                self._event(
-                    t_ns,
-                    EventLevel.INFO,
-                    EventCode.OBSTACLES_BACK,
-                    f"obstacle report {age_s:.2f} s old; deciding again",
-                )
-            return True
-        if not self._obstacles_stale:
-            self._obstacles_stale = True
-            self.stats.obstacle_stale_stops += 1
-            self._event(
-                t_ns,
-                EventLevel.ERROR,
-                EventCode.OBSTACLES_STALE,
-                f"obstacle report of t={layout.t_ns} ns is {age_s:.2f} s old (max "
-                f"{max_age:g} s): velocity reference zero until a fresher one",
-            )
         self._reference_index = None
         self.monitor.clear()
         self._set_reference(np.zeros(3))
@@ -878,8 +644,8 @@ class Runtime:
                 chosen_input=chosen,
                 reference_index=reference,
                 first=first,
-                report_age_s=self._controller_age_s,
-                report_t_ns=-1 if self._controller_layout is None else self._controller_layout.t_ns,
+                report_age_s=self.slot.age_s,
+                report_t_ns=-1 if self.slot.layout is None else self.slot.layout.t_ns,
             )
         )
 

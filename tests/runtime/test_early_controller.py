@@ -131,7 +131,7 @@ def _run(
         solver=lambda layout, age: adapter,
     )
     scripted = _Scripted(sim, adapter, adapter if early is None else early, full_after_s)
-    runtime.resynthesizer = scripted
+    runtime.slot.resynthesizer = scripted
     runtime.run()
     return runtime, scripted, log
 

@@ -127,8 +127,8 @@ def test_a_report_older_than_the_max_age_stops_decisions_until_a_fresh_one(
         0.0, 2.0, 4.0, 5.0, 5.0, 10.0, 12.0, 14.0]
     _assert_stale_over_the_silent_span(runtime, log)
     # The controller relies on the last report, renewed at 13 s and synthesized at 14 s.
-    assert runtime._controller_layout is not None
-    assert runtime._controller_layout.t_ns == log.layouts[-1].t_ns  # renewed to the last report
+    assert runtime.slot.layout is not None
+    assert runtime.slot.layout.t_ns == log.layouts[-1].t_ns  # renewed to the last report
 
 
 def test_a_fresher_report_of_the_same_shapes_renews_the_stamp_without_synthesis(
@@ -144,9 +144,9 @@ def test_a_fresher_report_of_the_same_shapes_renews_the_stamp_without_synthesis(
     # The one controller's report time followed the reports: the 10-s report, of the same
     # shapes, was enough to decide again, and the last one (14 s) is the one relied on.
     _assert_stale_over_the_silent_span(runtime, log)
-    assert runtime._controller_layout is not None
-    assert runtime._controller_layout.t_ns == log.layouts[-1].t_ns  # renewed to the last report
-    assert runtime._controller_layout.obstacles == solved[0].obstacles
+    assert runtime.slot.layout is not None
+    assert runtime.slot.layout.t_ns == log.layouts[-1].t_ns  # renewed to the last report
+    assert runtime.slot.layout.obstacles == solved[0].obstacles
 
 
 def test_a_moved_obstacle_is_still_synthesized(
@@ -163,9 +163,9 @@ def test_a_moved_obstacle_is_still_synthesized(
     assert versions[:3] == [1, 2, 3]
     assert set(versions[3:]) == {3}  # the later reports only renewed its stamp
     _assert_stale_over_the_silent_span(runtime, log)
-    assert runtime._controller_layout is not None
-    assert runtime._controller_layout.t_ns == log.layouts[-1].t_ns  # renewed to the last report
-    assert runtime._controller_layout.obstacles == solved[-1].obstacles
+    assert runtime.slot.layout is not None
+    assert runtime.slot.layout.t_ns == log.layouts[-1].t_ns  # renewed to the last report
+    assert runtime.slot.layout.obstacles == solved[-1].obstacles
 
 
 class _Deferred(Resynthesizer[SymbolicController]):
@@ -223,7 +223,7 @@ def _deferred_runtime(
         solver=lambda layout, age: adapter,
     )
     deferred = _Deferred(lambda layout, age: adapter)
-    runtime.resynthesizer = deferred
+    runtime.slot.resynthesizer = deferred
     return runtime, deferred, reports, log
 
 
@@ -234,8 +234,8 @@ def test_a_synthesis_finishing_after_a_renewal_keeps_the_renewed_stamp(
     still = reports.layout.obstacles
 
     def step(t_s: float) -> None:
-        runtime._watch_obstacles(round(t_s * NS_PER_S))
-        runtime._swap_controller(round(t_s * NS_PER_S))
+        runtime.slot.watch(round(t_s * NS_PER_S), False, lambda: None)
+        runtime.slot.swap(round(t_s * NS_PER_S))
 
     step(1.0)  # the 1-s report: submitted, being solved
     assert [layout.t_ns for layout, _ in deferred.held] == [NS_PER_S]
@@ -245,23 +245,23 @@ def test_a_synthesis_finishing_after_a_renewal_keeps_the_renewed_stamp(
     deferred.finish()
     step(2.5)  # the 1-s synthesis is in: it relies on the renewed 2-s report
     assert runtime.controller_version == 1
-    assert runtime._controller_layout == ObstacleLayout(2 * NS_PER_S, still)
+    assert runtime.slot.layout == ObstacleLayout(2 * NS_PER_S, still)
     reports.layout = ObstacleLayout(3 * NS_PER_S, still)
     step(3.0)  # renewed in force: no synthesis, the same version
     assert not deferred.held
     assert runtime.controller_version == 1
-    assert runtime._controller_layout == ObstacleLayout(3 * NS_PER_S, still)
+    assert runtime.slot.layout == ObstacleLayout(3 * NS_PER_S, still)
     moved = (still[0].translate(0.0, -0.05), *still[1:])
     reports.layout = ObstacleLayout(4 * NS_PER_S, moved)
     step(4.0)  # moved: submitted; the controller in force keeps its own report
     assert [layout for layout, _ in deferred.held] == [ObstacleLayout(4 * NS_PER_S, moved)]
     reports.layout = ObstacleLayout(5 * NS_PER_S, moved)
     step(5.0)  # a renewal of the moved shapes leaves the still ones' report as it was
-    assert runtime._controller_layout == ObstacleLayout(3 * NS_PER_S, still)
+    assert runtime.slot.layout == ObstacleLayout(3 * NS_PER_S, still)
     deferred.finish()
     step(5.5)
     assert runtime.controller_version == 2
-    assert runtime._controller_layout == ObstacleLayout(5 * NS_PER_S, moved)
+    assert runtime.slot.layout == ObstacleLayout(5 * NS_PER_S, moved)
     # Every report was recorded, renewals too.
     assert [layout.t_ns / NS_PER_S for layout in log.layouts] == [1.0, 2.0, 3.0, 4.0, 5.0]
 
@@ -275,8 +275,8 @@ def test_a_controller_arriving_older_than_the_max_age_is_named(
     assert runtime.report_ages.next_s() == 1.0
 
     def step(t_s: float) -> list[str]:
-        runtime._watch_obstacles(round(t_s * NS_PER_S))
-        runtime._swap_controller(round(t_s * NS_PER_S))
+        runtime.slot.watch(round(t_s * NS_PER_S), False, lambda: None)
+        runtime.slot.swap(round(t_s * NS_PER_S))
         return [text for _, _, code, text in log.events if code == "synthesis_overrun"]
 
     step(1.0)
@@ -293,7 +293,7 @@ def test_a_controller_arriving_older_than_the_max_age_is_named(
     assert runtime.controller_version == 2
     reports.layout = ObstacleLayout(4 * NS_PER_S, moved)
     assert len(step(4.0)) == 1  # a fresher report of its shapes renews it: nothing new
-    assert runtime._controller_layout == ObstacleLayout(4 * NS_PER_S, moved)
+    assert runtime.slot.layout == ObstacleLayout(4 * NS_PER_S, moved)
 
 
 def test_fixed_obstacles_never_age(setup: tuple[Scenario, SymbolicAdapter, Path]) -> None:
