@@ -31,7 +31,7 @@ import numpy as np
 from numba import prange
 from numpy.typing import NDArray
 
-from hil.controllers.symbolic.planes_kernel import box_test, changed_band
+from hil.controllers.symbolic.box_test import box_test, changed_band
 from hil.core.arrays import U64Array
 from hil.core.jit import njit, njit_parallel
 
