@@ -21,7 +21,15 @@ from hil.bag.errors import RecordValueError
 from hil.bag.messages import Record
 from hil.core.clock import NS_PER_S
 from hil.core.geometry import quaternion_yaw
-from hil.core.records import Decision, Event, EventLevel, ForceCommand, StateEstimate
+from hil.core.records import (
+    ControllerReady,
+    ControllerSource,
+    Decision,
+    Event,
+    EventLevel,
+    ForceCommand,
+    StateEstimate,
+)
 from hil.core.samples import (
     Frame,
     ImuSample,
@@ -167,6 +175,22 @@ def _event(msg: Any) -> Event:
     return Event(_t_ns(msg.header), level, str(msg.code), str(msg.text))
 
 
+def _controller_ready(msg: Any) -> ControllerReady:
+    try:
+        source = ControllerSource(int(msg.source))
+    except ValueError:
+        raise RecordValueError(f"controller source {int(msg.source)!r} is not known") from None
+    return ControllerReady(
+        _t_ns(msg.header),
+        int(msg.controller_version),
+        float(msg.seconds),
+        source,
+        bool(msg.complete),
+        float(msg.report_age_s),
+        int(msg.layout_t_ns),
+    )
+
+
 _DECODERS: dict[str, Callable[[Any], Record]] = {
     topics.POSE_TYPE: _pose,
     topics.IMU_TYPE: _imu,
@@ -177,6 +201,7 @@ _DECODERS: dict[str, Callable[[Any], Record]] = {
     ts.DECISION: _decision,
     ts.OBSTACLE_LAYOUT: _layout,
     ts.EVENT: _event,
+    ts.CONTROLLER_READY: _controller_ready,
 }
 
 SAMPLE_TYPES: frozenset[str] = frozenset(_DECODERS)

@@ -34,6 +34,7 @@ from hil.core.azimuth import azimuth_vector
 from hil.core.clock import NS_PER_S
 from hil.core.geometry import yaw_quaternion
 from hil.core.records import (
+    ControllerReady,
     Decision,
     Event,
     ForceCommand,
@@ -58,6 +59,7 @@ Record = (
     | Decision
     | ObstacleLayout
     | Event
+    | ControllerReady
 )
 """Anything the recorder accepts."""
 
@@ -71,6 +73,7 @@ RECORD_TYPES: tuple[type, ...] = (
     Decision,
     ObstacleLayout,
     Event,
+    ControllerReady,
 )
 
 Encoded = list[tuple[str, bytes]]
@@ -286,6 +289,20 @@ def event_msg(record: Event) -> Any:
     )
 
 
+def controller_ready_msg(record: ControllerReady) -> Any:
+    """Return the hil_msgs/ControllerReady message object of a controller taken."""
+    cls = ts.typestore().types[ts.CONTROLLER_READY]
+    return cls(
+        header=_header(record.t_ns, ""),
+        controller_version=record.version,
+        seconds=record.seconds,
+        source=int(record.source),
+        complete=record.complete,
+        report_age_s=record.report_age_s,
+        layout_t_ns=record.layout_t_ns,
+    )
+
+
 def _serialized(topic: str, typename: str, msg: Any) -> Encoded:
     return [(topic, bytes(ts.typestore().serialize_cdr(msg, typename)))]
 
@@ -305,6 +322,11 @@ def encode_event(record: Event) -> Encoded:
     return _serialized(topics.EVENTS, ts.EVENT, event_msg(record))
 
 
+def encode_controller_ready(record: ControllerReady) -> Encoded:
+    """Encode a controller taken as hil_msgs/ControllerReady on /hil/controllers."""
+    return _serialized(topics.CONTROLLERS, ts.CONTROLLER_READY, controller_ready_msg(record))
+
+
 ENCODERS: dict[type, Callable[[Any], Encoded]] = {
     PoseSample: encode_pose,
     ImuSample: encode_imu,
@@ -315,6 +337,7 @@ ENCODERS: dict[type, Callable[[Any], Encoded]] = {
     Decision: encode_decision,
     ObstacleLayout: encode_obstacles,
     Event: encode_event,
+    ControllerReady: encode_controller_ready,
 }
 
 

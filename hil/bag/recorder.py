@@ -44,7 +44,14 @@ from hil.bag.messages import Encoded, Record, encode
 from hil.bag.metadata import FileEntry, TopicEntry, write_metadata
 from hil.bag.run_info import RunInfo
 from hil.core.arrays import FloatArray
-from hil.core.records import Decision, Event, EventLevel, ForceCommand, StateEstimate
+from hil.core.records import (
+    ControllerReady,
+    Decision,
+    Event,
+    EventLevel,
+    ForceCommand,
+    StateEstimate,
+)
 from hil.core.samples import (
     ImuSample,
     ObstacleLayout,
@@ -431,6 +438,10 @@ class Recorder:
     def event(self, t_ns: int, level: EventLevel, code: str, text: str) -> None:
         """Record a runtime event or fault."""
         self.record(Event(t_ns, level, code, text))
+
+    def controller_ready(self, record: ControllerReady) -> None:
+        """Record a controller taken from the re-synthesis."""
+        self.record(record)
 
     def _run(self) -> None:
         while not self._stop.is_set():

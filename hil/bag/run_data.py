@@ -58,12 +58,12 @@ from hil.bag.reader import BagInfo, BagReader, SkippedMessage
 from hil.bag.run_info import RunInfo
 from hil.bag.storage import RawMessage
 from hil.core.arrays import FloatArray, IntArray
-from hil.core.records import Decision, Event
+from hil.core.records import ControllerReady, ControllerSource, Decision, Event
 from hil.core.samples import ObstacleLayout
 from hil.core.shapes import Rect
 from hil.core.tracking import TrackingSeries, tracking_error
 
-_SYNTHESIS_TEXT = re.compile(r"controller v(\d+) in ([0-9.eE+-]+) s")
+_LEGACY_READY = re.compile(r"controller v(\d+)\b( early)?(?: in ([0-9.eE+-]+) s)?")
 _CONTROLLER_READY = "controller_ready"
 
 FIELDS: dict[str, tuple[str, ...]] = {
@@ -76,7 +76,7 @@ FIELDS: dict[str, tuple[str, ...]] = {
 }
 """Topic -> the sample fields kept, in column order: the one field table of a run."""
 
-RECORD_TOPICS = (topics.DECISION, topics.OBSTACLES, topics.EVENTS)
+RECORD_TOPICS = (topics.DECISION, topics.OBSTACLES, topics.EVENTS, topics.CONTROLLERS)
 """Topics read as records (variable size)."""
 
 WRENCH_TOPICS = (topics.THRUSTER_TUNNEL, topics.THRUSTER_PORT, topics.THRUSTER_STARBOARD)
@@ -134,32 +134,21 @@ class Layout:
         return ObstacleLayout(self.t_ns, self.rectangles)
 
 
-@dataclass(frozen=True, slots=True)
-class SynthesisTime:
-    """One re-synthesis, read from a ``controller_ready`` event.
+def legacy_controller_ready(event: Event) -> ControllerReady | None:
+    """Return the controller a ``controller_ready`` event of a log without /hil/controllers names.
 
-    Attributes:
-        t_ns: Time the controller was swapped in (ns).
-        version: Controller version.
-        seconds: Wall time of the synthesis (s).
+    Logs written before the record said it only in words: "controller vN in S s" (the
+    regression suite leaves " in S s" out) or "controller vN early in S s: ...". The
+    source, report age and layout were not recorded.
     """
-
-    t_ns: int
-    version: int
-    seconds: float
-
-
-def synthesis_time(event: Event) -> SynthesisTime | None:
-    """Return the synthesis an event reports ("controller vN in S s"), or None."""
-    if event.code != _CONTROLLER_READY:
-        return None
-    match = _SYNTHESIS_TEXT.search(event.text)
+    match = _LEGACY_READY.match(event.text) if event.code == _CONTROLLER_READY else None
     if match is None:
         return None
-    seconds = float(match.group(2))
-    return (
-        SynthesisTime(event.t_ns, int(match.group(1)), seconds) if math.isfinite(seconds) else None
-    )
+    seconds = float(match.group(3)) if match.group(3) else math.nan
+    return ControllerReady(
+        event.t_ns, int(match.group(1)), seconds, ControllerSource.UNKNOWN,
+        match.group(2) is None, math.nan, -1,
+    )  # fmt: skip
 
 
 class RepairKind(enum.Enum):
@@ -242,6 +231,7 @@ class RunData:
     decisions: tuple[Decision, ...]
     layouts: tuple[Layout, ...]
     events: tuple[Event, ...]
+    controllers: tuple[ControllerReady, ...] = ()
     repairs: tuple[Repair, ...] = ()
     skipped: tuple[SkippedMessage, ...] = ()
     lab_only: bool = False
@@ -312,10 +302,22 @@ class RunData:
             self.reference.values,
         )
 
-    def synthesis_times(self) -> tuple[SynthesisTime, ...]:
-        """Return each re-synthesis with its wall time, from the ``controller_ready`` events."""
-        times = (synthesis_time(event) for event in self.events)
-        return tuple(t for t in times if t is not None)
+    def controllers_ready(self) -> tuple[ControllerReady, ...]:
+        """Return every controller the runtime took (early and full), in log order.
+
+        From ``/hil/controllers``; in logs written before it, read from the
+        ``controller_ready`` events (:func:`legacy_controller_ready`).
+        """
+        if self.controllers:
+            return self.controllers
+        legacy = (legacy_controller_ready(event) for event in self.events)
+        return tuple(c for c in legacy if c is not None)
+
+    def synthesis_times(self) -> tuple[ControllerReady, ...]:
+        """Return each full controller whose solve time was kept (finite ``seconds``)."""
+        return tuple(
+            c for c in self.controllers_ready() if c.complete and math.isfinite(c.seconds)
+        )
 
     def layout_at(self, t_ns: int) -> Layout | None:
         """Return the newest layout observed at or before `t_ns` (else the first, or None)."""
@@ -625,6 +627,9 @@ def load_run(path: str | Path, lab: LabTopics | None = None) -> RunData:
             topics.OBSTACLES, by_topic[topics.OBSTACLES], loader.layout, _layout_key
         )
         events = loader.records(topics.EVENTS, by_topic[topics.EVENTS], loader.record, _record_key)
+        ready = loader.records(
+            topics.CONTROLLERS, by_topic[topics.CONTROLLERS], loader.record, _record_key
+        )
     return RunData(
         path=Path(path),
         info=info,
@@ -637,6 +642,7 @@ def load_run(path: str | Path, lab: LabTopics | None = None) -> RunData:
         decisions=tuple(r for r in decisions if isinstance(r, Decision)),
         layouts=layouts,
         events=tuple(r for r in events if isinstance(r, Event)),
+        controllers=tuple(r for r in ready if isinstance(r, ControllerReady)),
         repairs=tuple(loader.repairs),
         skipped=tuple(loader.skipped),
         lab_only=_lab_only(info),

@@ -32,6 +32,9 @@ OBSTACLES = "/hil/obstacles"
 """Obstacle layouts, hil_msgs/ObstacleLayout."""
 EVENTS = "/hil/events"
 """Runtime events and faults, hil_msgs/Event."""
+CONTROLLERS = "/hil/controllers"
+"""Each controller taken from the re-synthesis (version, solve time, source),
+hil_msgs/ControllerReady."""
 
 POSE_TYPE = "geometry_msgs/msg/PoseWithCovarianceStamped"
 IMU_TYPE = "sensor_msgs/msg/Imu"
@@ -53,6 +56,7 @@ TOPIC_TYPES: dict[str, str] = {
     DECISION: ts.DECISION,
     OBSTACLES: ts.OBSTACLE_LAYOUT,
     EVENTS: ts.EVENT,
+    CONTROLLERS: ts.CONTROLLER_READY,
 }
 """Every topic hil records and its message type."""
 

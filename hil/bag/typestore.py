@@ -30,6 +30,7 @@ POLYGON_2D = f"{PACKAGE}/msg/Polygon2D"
 OBSTACLE_LAYOUT = f"{PACKAGE}/msg/ObstacleLayout"
 THRUSTER_COMMANDS = f"{PACKAGE}/msg/ThrusterCommands"
 EVENT = f"{PACKAGE}/msg/Event"
+CONTROLLER_READY = f"{PACKAGE}/msg/ControllerReady"
 
 
 def hil_type_names() -> tuple[str, ...]:

@@ -158,7 +158,7 @@ def record_run(run: SuiteRun, out_dir: Path) -> Path:
     return path
 
 
-_WALL_TIME = re.compile(r" in \d+\.\d+ s$")
+_WALL_TIME = re.compile(r" in \d+\.\d+ s(?=$| \()")
 
 
 def memory_records(log: MemoryLog, *, wall_times: bool = True) -> list[Record]:
@@ -167,8 +167,8 @@ def memory_records(log: MemoryLog, *, wall_times: bool = True) -> list[Record]:
     Args:
         log: The run's records.
         wall_times: Keep the wall-clock synthesis time in ``controller_ready``
-            event texts; False drops it, the only part of a simulated run that
-            is not a function of its specification.
+            event texts and records; False drops it (NaN in the records), the only
+            part of a simulated run that is not a function of its specification.
     """
     from hil.core.records import Event, ForceCommand, StateEstimate
     from hil.core.samples import VelocityReference
@@ -189,6 +189,9 @@ def memory_records(log: MemoryLog, *, wall_times: bool = True) -> list[Record]:
             text if wall_times or code != "controller_ready" else _WALL_TIME.sub("", text),
         )
         for t, level, code, text in log.events
+    ]
+    records += [
+        c if wall_times else replace(c, seconds=math.nan) for c in log.controllers
     ]
     records.sort(key=lambda r: r.t_ns)
     return records

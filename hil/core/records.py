@@ -312,3 +312,61 @@ class Event:
         _check_time("event", self.t_ns)
         if not isinstance(self.level, EventLevel):
             raise RecordValueError(f"event level must be an EventLevel, got {self.level!r}")
+
+
+class ControllerSource(enum.IntEnum):
+    """Where a controller put in force came from (the values of hil_msgs/ControllerReady)."""
+
+    SOLVED = 0
+    """The fixed point ran for it."""
+    STORE = 1
+    """Read from the solved-controller store on disk."""
+    MEMORY = 2
+    """This process had solved the same layout before (the solver's memo)."""
+    UNKNOWN = 255
+    """Not recorded (logs written before the record existed)."""
+
+
+@dataclass(frozen=True, slots=True)
+class ControllerReady:
+    """A controller the runtime took from its re-synthesis (early or full).
+
+    Attributes:
+        t_ns: When the runtime took it (ns): a full one is in force from here, an
+            early one waits for a decision it covers.
+        version: Controller version (the decisions' ``controller_version``).
+        seconds: Wall time from the layout's submission to this result (s); NaN where
+            not kept (the regression suite leaves wall times out).
+        source: Solved, from the store or from memory.
+        complete: False for an early controller (it covers the vessel's state and every
+            state of a lower value; the full one follows under the same version).
+        report_age_s: The obstacle report age it was solved for (s).
+        layout_t_ns: Stamp of the obstacle layout it was solved for (ns); -1 unknown.
+    """
+
+    t_ns: int
+    version: int
+    seconds: float
+    source: ControllerSource
+    complete: bool
+    report_age_s: float
+    layout_t_ns: int
+
+    def __post_init__(self) -> None:
+        _check_time("controller_ready", self.t_ns)
+        if self.version < 0:
+            raise RecordValueError(f"controller version must be >= 0, got {self.version!r}")
+        if not isinstance(self.source, ControllerSource):
+            raise RecordValueError(f"source must be a ControllerSource, got {self.source!r}")
+
+    def describe(self) -> str:
+        """Return the human text of the ``controller_ready`` event this record goes with."""
+        took = "" if math.isnan(self.seconds) else f" in {self.seconds:.3f} s"
+        if not self.complete:
+            return (
+                f"controller v{self.version} early{took}: it covers the vessel's state and "
+                "every state of a lower value; the full solve goes on"
+            )
+        came = {ControllerSource.STORE: " (from the store)", ControllerSource.MEMORY:
+                " (from memory)"}.get(self.source, "")
+        return f"controller v{self.version}{took}{came}"

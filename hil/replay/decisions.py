@@ -33,7 +33,6 @@ since everything after it legitimately departs. Any other difference is a regres
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -58,7 +57,6 @@ from hil.replay.regression import Check, Finding, Status, time_s
 from hil.runtime.protocols import SymbolicController
 from hil.runtime.settings import NS_PER_S
 
-_READY = re.compile(r"controller v(\d+)\b")
 ROW_TOLERANCE = 1e-9
 """Largest difference between a recorded input row and the grid's (m/s, rad/s)."""
 COST_TOLERANCE = 1e-9
@@ -125,12 +123,10 @@ def recompute(
 
 
 def _version_times(run: RunData) -> dict[int, int]:
-    """Return when each controller version was swapped in (ns), from the events."""
+    """Return when each controller version was first taken (ns; early or full)."""
     out: dict[int, int] = {}
-    for event in run.events:
-        match = _READY.match(event.text) if event.code == "controller_ready" else None
-        if match:
-            out.setdefault(int(match.group(1)), event.t_ns)
+    for ready in run.controllers_ready():
+        out.setdefault(ready.version, ready.t_ns)
     return out
 
 

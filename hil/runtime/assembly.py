@@ -195,9 +195,10 @@ class LayoutSolver:
         Raises:
             NoWinningSetError: No cell outside the target is winning.
         """
+        before = self.synthesizer.sources.copy()
         controller = self.synthesizer.solve_problem(self._problem(layout, report_age_s))
         self._require_winning(controller, layout)
-        return SymbolicAdapter(controller)
+        return SymbolicAdapter(controller, self.synthesizer.sources.source_since(before))
 
     def stages(
         self, layout: ObstacleLayout, report_age_s: float, vessel: VesselState
@@ -213,11 +214,13 @@ class LayoutSolver:
         problem = self._problem(layout, report_age_s)
         cell = problem.grid.cell_of(vessel.eta)
         watch = None if cell is None else Watch(cell, vessel.reference)
+        before = self.synthesizer.sources.copy()
         for controller in self.synthesizer.solve_stages(problem, watch):
             complete = controller.stats.complete
             if complete:
                 self._require_winning(controller, layout)
-            yield SymbolicAdapter(controller), complete
+            source = self.synthesizer.sources.source_since(before)
+            yield SymbolicAdapter(controller, source), complete
 
     def _problem(self, layout: ObstacleLayout, report_age_s: float | None) -> SymbolicProblem:
         """Return the problem of `layout`: obstacles that move grown over `report_age_s`.

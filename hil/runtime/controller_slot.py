@@ -18,7 +18,7 @@ from dataclasses import replace
 
 from hil.adapters.interfaces import ObstacleSource
 from hil.core.arrays import FloatArray
-from hil.core.records import EventLevel
+from hil.core.records import ControllerReady, EventLevel
 from hil.core.samples import ObstacleLayout
 from hil.runtime.events import EventCode
 from hil.runtime.protocols import RunLog, SymbolicController
@@ -176,13 +176,7 @@ class ControllerSlot:
             return Swap.NOTHING, ""
         if result.controller is not None and not result.complete:
             self._early = result
-            self._event(
-                t_ns,
-                EventLevel.DEBUG,
-                EventCode.CONTROLLER_READY,
-                f"controller v{result.version} early in {result.seconds:.3f} s: it covers the "
-                "vessel's state and every state of a lower value; the full solve goes on",
-            )
+            self._ready(result, result.controller, t_ns)
             return Swap.NOTHING, ""
         self._early = None
         self.in_force_early = False
@@ -190,12 +184,7 @@ class ControllerSlot:
             self._put_in_force(result, t_ns)
             self._stats.resyntheses += 1
             self._stats.synthesis_seconds.append(result.seconds)
-            self._event(
-                t_ns,
-                EventLevel.DEBUG,
-                EventCode.CONTROLLER_READY,
-                f"controller v{result.version} in {result.seconds:.3f} s",
-            )
+            self._ready(result, result.controller, t_ns)
             return Swap.IN_FORCE, ""
         self._stats.failed_syntheses += 1
         if self.layout is not None and layout_covers(self.layout, result.layout):
@@ -215,6 +204,18 @@ class ControllerSlot:
             f"{result.error}; no valid controller, stopping the vessel",
         )
         return Swap.LOST, f"synthesis failed ({result.error}); no controller to go on with"
+
+    def _ready(
+        self, result: SynthesisResult[SymbolicController], controller: SymbolicController,
+        t_ns: int,
+    ) -> None:
+        """Record a controller taken: its fields, and the event that says it in words."""
+        record = ControllerReady(
+            t_ns, result.version, result.seconds, controller.source, result.complete,
+            result.report_age_s, result.layout.t_ns,
+        )  # fmt: skip
+        self._log.controller_ready(record)
+        self._event(t_ns, EventLevel.DEBUG, EventCode.CONTROLLER_READY, record.describe())
 
     def take_early(self, t_ns: int, eta_hat: FloatArray, reference: int | None) -> None:
         """Put the early controller in force when it covers this (non-first) decision.

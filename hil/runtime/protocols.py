@@ -14,7 +14,7 @@ from typing import Protocol
 from hil.controllers.consistency import ConsistencyBreach
 from hil.controllers.symbolic import Answer, Select
 from hil.core.arrays import FloatArray, IntArray
-from hil.core.records import Decision, EventLevel
+from hil.core.records import ControllerReady, ControllerSource, Decision, EventLevel
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
 
 
@@ -75,6 +75,10 @@ class SymbolicController(Protocol):
     @property
     def inputs(self) -> FloatArray:
         """The input grid, shape (n_inputs, 3), rows (u, v, r)."""
+
+    @property
+    def source(self) -> ControllerSource:
+        """Where this controller came from (solved, the store, memory)."""
 
 
 class LowLevel(Protocol):
@@ -137,3 +141,6 @@ class RunLog(Protocol):
 
     def event(self, t_ns: int, level: EventLevel, code: str, text: str) -> None:
         """Record a runtime event or fault."""
+
+    def controller_ready(self, record: ControllerReady) -> None:
+        """Record a controller taken from the re-synthesis (version, solve time, source)."""

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hil.core.arrays import FloatArray
-from hil.core.records import Decision, EventLevel
+from hil.core.records import ControllerReady, Decision, EventLevel
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
 
 
@@ -29,6 +29,7 @@ class MemoryLog:
     decisions: list[Decision] = field(default_factory=list)
     layouts: list[ObstacleLayout] = field(default_factory=list)
     events: list[tuple[int, EventLevel, str, str]] = field(default_factory=list)
+    controllers: list[ControllerReady] = field(default_factory=list)
 
     def pose(self, sample: PoseSample) -> None:
         """Record a pose sample."""
@@ -65,6 +66,10 @@ class MemoryLog:
     def event(self, t_ns: int, level: EventLevel, code: str, text: str) -> None:
         """Record an event."""
         self.events.append((t_ns, level, code, text))
+
+    def controller_ready(self, record: ControllerReady) -> None:
+        """Record a controller taken from the re-synthesis."""
+        self.controllers.append(record)
 
     def event_codes(self) -> list[str]:
         """Return the codes of all events, in order."""

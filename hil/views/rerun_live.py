@@ -2,15 +2,16 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
 import rerun as rr
 
-from hil.bag.run_data import Layout, synthesis_time
+from hil.bag.run_data import Layout
 from hil.core.arrays import FloatArray
 from hil.core.geometry import yaw_quaternions
-from hil.core.records import Decision, Event, EventLevel
+from hil.core.records import ControllerReady, Decision, EventLevel
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
 from hil.core.tracking import tracking_error
 from hil.replay.intervals import budget_class, envelope_bound
@@ -195,14 +196,19 @@ class LiveRerunLog:
         )
 
     def event(self, t_ns: int, level: EventLevel, code: str, text: str) -> None:
-        """Add a text log entry; plot the synthesis time of a new controller."""
+        """Add a text log entry."""
         if self.inner is not None:
             self.inner.event(t_ns, level, code, text)
         self._at(t_ns)
         self.rec.log("events", rr.TextLog(f"{code}: {text}", level=LEVELS.get(level, "INFO")))
-        timing = synthesis_time(Event(t_ns, level, code, text))
-        if timing is not None:
-            self.rec.log("plots/synthesis_time_s", rr.Scalars(timing.seconds))
+
+    def controller_ready(self, record: ControllerReady) -> None:
+        """Plot the synthesis time of a controller put in force (full ones)."""
+        if self.inner is not None:
+            self.inner.controller_ready(record)
+        if record.complete and math.isfinite(record.seconds):
+            self._at(record.t_ns)
+            self.rec.log("plots/synthesis_time_s", rr.Scalars(record.seconds))
 
     def close(self) -> None:
         """Flush what is buffered and detach from the sinks."""

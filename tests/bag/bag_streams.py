@@ -7,7 +7,15 @@ import math
 from pathlib import Path
 
 from hil.bag.messages import Record
-from hil.core.records import Decision, Event, EventLevel, ForceCommand, StateEstimate
+from hil.core.records import (
+    ControllerReady,
+    ControllerSource,
+    Decision,
+    Event,
+    EventLevel,
+    ForceCommand,
+    StateEstimate,
+)
 from hil.core.samples import (
     Frame,
     ImuSample,
@@ -61,4 +69,5 @@ def one_of_each(t_ns: int, i: int = 0) -> list[Record]:
         Decision.from_arrays(t_ns, [0, 0, 0], -1, math.inf, False, [], [], -1, 2, "sha256:abc"),
         ObstacleLayout(t_ns, (Rect(0.0, 1.0, 2.0, 3.5 + s), Rect(-1.0, 0.5, 0.0, 0.25))),
         Event(t_ns, EventLevel.WARN, "pose_stale", f"no pose for 0.{i} s"),
+        ControllerReady(t_ns, 3 + i, 0.25 + s, ControllerSource.MEMORY, i % 2 == 0, 1.5, -1),
     ]

@@ -17,7 +17,8 @@ import pytest
 
 from hil.adapters.sim import ObstacleMotion, ThrusterOutage
 from hil.bag.reader import BagReader
-from hil.core.records import Decision
+from hil.bag.run_data import legacy_controller_ready, load_run
+from hil.core.records import ControllerSource, Decision, Event, EventLevel
 from hil.runs.sim_run import SimRunSpec, run_in_sim, spec_from_json
 from hil.runtime.events import EventCode
 from hil.runtime.settings import LoopConfig
@@ -167,3 +168,44 @@ def test_start_outside_the_winning_set_stops_and_says_so(cache_dir: Path) -> Non
     assert log.events[-2][0] < round((LOOP.observer_settle_s + 0.1) * 1e9)
     assert all(np.all(nu == 0.0) for _, nu in log.velocity_references)
     assert math.isfinite(summary.min_clearance_m)
+
+
+def test_each_controller_taken_is_recorded_with_its_version_solve_time_and_source(
+    cache_dir: Path, tmp_path: Path
+) -> None:
+    # The timer re-submits the same layout every 10 s: those come from the solver's memo.
+    out = tmp_path / "run"
+    spec = _spec(cache_dir, seed=1, out_dir=out, loop=replace(LOOP, resynthesis_period_s=10.0))
+    summary = run_in_sim(spec)
+    run = load_run(out)
+    ready = run.controllers
+    assert len(ready) == summary.resyntheses >= 3
+    assert [c.version for c in ready] == list(range(1, len(ready) + 1))
+    assert all(c.complete and c.seconds >= 0.0 for c in ready)
+    assert all(c.source is ControllerSource.MEMORY for c in ready[1:])
+    assert ready[0].source is not ControllerSource.UNKNOWN
+    assert {c.layout_t_ns for c in ready} == {run.layouts[0].t_ns}
+    assert {d.controller_version for d in run.decisions} <= {c.version for c in ready}
+    # The event says the same in words; the record is what replay reads.
+    texts = [e.text for e in run.events if e.code == EventCode.CONTROLLER_READY.value]
+    assert texts == [c.describe() for c in ready]
+    assert texts[1].endswith("(from memory)")
+    assert run.controllers_ready() == ready
+    assert run.synthesis_times() == ready
+
+
+def test_logs_without_the_controller_topic_are_read_from_the_event_texts() -> None:
+    def event(text: str) -> Event:
+        return Event(5, EventLevel.DEBUG, EventCode.CONTROLLER_READY.value, text)
+
+    full = legacy_controller_ready(event("controller v3 in 0.125 s"))
+    assert full is not None
+    assert (full.version, full.seconds, full.complete) == (3, 0.125, True)
+    assert full.source is ControllerSource.UNKNOWN and full.layout_t_ns == -1
+    suite = legacy_controller_ready(event("controller v4"))  # the suite drops wall times
+    assert suite is not None and suite.version == 4 and math.isnan(suite.seconds)
+    early = legacy_controller_ready(event("controller v5 early in 0.5 s: it covers the vessel"))
+    assert early is not None and not early.complete and early.seconds == 0.5
+    assert legacy_controller_ready(event("synthesis slower than 2 s")) is None
+    other = Event(5, EventLevel.WARN, "synthesis_overrun", "controller v2 in 1.0 s")
+    assert legacy_controller_ready(other) is None

@@ -12,6 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hil.controllers.symbolic import Answer, Select
+from hil.core.records import ControllerSource
 
 F = NDArray[np.float64]
 I64 = NDArray[np.int64]
@@ -23,6 +24,7 @@ class ScriptedController:
     def __init__(self, refs: F) -> None:
         self._refs = refs
         self.decisions = 0
+        self.source = ControllerSource.SOLVED
 
     @property
     def inputs(self) -> F:

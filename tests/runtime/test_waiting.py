@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 
 from hil.adapters.sim import SimConfig, SimWorld
 from hil.controllers.symbolic import Answer, Options, Select, wait_slowest
+from hil.core.records import ControllerSource
 from hil.core.samples import ObstacleLayout
 from hil.runtime.assembly import low_level_for
 from hil.runtime.events import EventCode
@@ -36,6 +37,7 @@ class WaitingController:
     def __init__(self) -> None:
         self.decisions = 0
         self.contracts: list[bool] = []
+        self.source = ControllerSource.SOLVED
 
     @property
     def inputs(self) -> F:

@@ -27,6 +27,7 @@ from hil.controllers.symbolic.contract import DecisionContract
 from hil.controllers.symbolic.controller import Controller
 from hil.controllers.symbolic.selection import cheapest
 from hil.core.arrays import FloatArray, IntArray
+from hil.core.records import ControllerSource
 
 __all__ = ["Answer", "Options", "Select", "SymbolicAdapter", "j_select", "wait_slowest"]
 
@@ -100,8 +101,12 @@ class Answer:
 class SymbolicAdapter:
     """A synthesized controller behind the runtime's ``SymbolicController`` protocol."""
 
-    def __init__(self, controller: Controller) -> None:
+    def __init__(
+        self, controller: Controller, source: ControllerSource = ControllerSource.SOLVED
+    ) -> None:
         self.controller = controller
+        self.source = source
+        """Where the controller came from (solved, the store, memory)."""
         grid = controller.grid
         self._strides = (grid.ny * grid.npsi, grid.npsi, 1)
 

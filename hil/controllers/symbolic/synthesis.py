@@ -40,6 +40,7 @@ from hil.controllers.symbolic.store import ControllerStore, SolvedLayout, solve_
 from hil.core.arrays import BoolArray, U64Array
 from hil.core.jit import njit
 from hil.core.memory import require_bytes
+from hil.core.records import ControllerSource
 
 I32Array = NDArray[np.int32]
 
@@ -89,6 +90,19 @@ class ControllerSources:
     def copy(self) -> ControllerSources:
         """Return a snapshot of the counts."""
         return replace(self)
+
+    def source_since(self, before: ControllerSources) -> ControllerSource:
+        """Return where the one controller handed out since `before` came from.
+
+        Meant for one request between two snapshots on the synthesizer's only caller
+        (the runtime's solver thread); a solve that yielded nothing counts as solved.
+        """
+        since = self.minus(before)
+        if since.memory:
+            return ControllerSource.MEMORY
+        if since.store:
+            return ControllerSource.STORE
+        return ControllerSource.SOLVED
 
     def describe(self) -> str:
         """Return the counts as text, e.g. ``2 solved, 1 from the store``."""
