@@ -76,6 +76,9 @@ class Integrator(enum.IntEnum):
     """Classical 4th-order Runge-Kutta, force held constant over the step."""
 
 
+_RK4 = int(Integrator.RK4)  # the kernels take the value: a global int is a compile-time constant
+
+
 @njit
 def coriolis_terms(coef: FloatArray, nu: FloatArray) -> tuple[float, float]:
     """Return (c13, c23) of C(nu) (see :func:`coriolis_matrix`)."""
@@ -278,7 +281,7 @@ def integrate_step(
     method: int,
 ) -> tuple[FloatArray, FloatArray]:
     """Advance one step with ``method`` (an :class:`Integrator` value)."""
-    if method == 1:
+    if method == _RK4:
         return rk4_step(m_inv, coef, eta, nu, force, dt)
     return euler_step(m_inv, coef, eta, nu, force, dt)
 

@@ -52,6 +52,7 @@ from hil.core.arrays import FloatArray
 from hil.core.geometry import wrap_angles
 from hil.core.records import Decision
 from hil.core.samples import ObstacleLayout
+from hil.replay.context import ReplayContext
 from hil.replay.controllers import ControllerCache
 from hil.replay.regression import Check, Finding, Status, time_s
 from hil.runtime.protocols import SymbolicController
@@ -465,8 +466,9 @@ def replayed_decisions(run: RunData, controllers: ControllerCache) -> list[Decis
     return out
 
 
-def check_decisions(run: RunData, controllers: ControllerCache) -> Check:
+def check_decisions(ctx: ReplayContext) -> Check:
     """Check every field of every recorded decision (see module docstring)."""
+    run, controllers = ctx.run, ctx.controllers
     if not run.decisions:
         return Check("decisions", Status.SKIP, "the log holds no decisions")
     findings: list[Finding] = []

@@ -17,17 +17,17 @@ limit of 4.31, and 30-46 with poses 3 times noisier than the model).
 
 from __future__ import annotations
 
-from hil.bag.run_data import RunData
 from hil.core.samples import ImuSample, PoseSample
+from hil.replay.context import ReplayContext
 from hil.replay.regression import Check, Finding, Status, time_s
 from hil.runtime.assembly import EkfObserver
 from hil.runtime.events import EventCode
-from hil.scenarios import Scenario
 
 
-def check_estimation(run: RunData, scenario: Scenario) -> Check:
+def check_estimation(ctx: ReplayContext) -> Check:
     """Re-run the EKF's consistency watch on the recorded samples (see module docstring)."""
-    pose, imu = run.pose, run.imu
+    scenario = ctx.scenario
+    pose, imu = ctx.run.pose, ctx.run.imu
     if len(pose.t_ns) == 0:
         return Check("estimation", Status.SKIP, "no pose recorded: nothing to judge")
     observer = EkfObserver(estimation_bound_m=scenario.transient.estimation_position_m)
@@ -56,7 +56,7 @@ def check_estimation(run: RunData, scenario: Scenario) -> Check:
         }))  # fmt: skip
     findings.extend(
         Finding(f"on the vessel: {event.text}", event.t_ns)
-        for event in run.events
+        for event in ctx.run.events
         if event.code == EventCode.ESTIMATE_INCONSISTENT.value
     )
     if findings:

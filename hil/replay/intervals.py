@@ -31,6 +31,7 @@ figures.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 
 import numpy as np
@@ -43,6 +44,7 @@ from hil.core.clock import NS_PER_S
 from hil.core.records import Decision
 from hil.core.tracking import AXES, DISPLAY_UNITS, for_display
 from hil.core.transient import TransientBudget
+from hil.replay.context import ReplayContext
 from hil.replay.controllers import ControllerCache
 from hil.replay.decisions import decision_controllers
 from hil.replay.regression import Check, Finding, Interval, Status, time_s
@@ -314,7 +316,16 @@ def judge_intervals(
     return tuple(out)
 
 
-def check_contract(intervals: Sequence[Interval]) -> Check:
+def check_contract(ctx: ReplayContext) -> Check:
+    """Judge every interval of the run (:func:`judge_intervals`) and give the verdict.
+
+    The check carries the judged intervals (``Check.intervals``).
+    """
+    intervals = judge_intervals(ctx.run, ctx.controllers, ctx.scenario, ctx.earlier)
+    return dataclasses.replace(contract_verdict(intervals), intervals=intervals)
+
+
+def contract_verdict(intervals: Sequence[Interval]) -> Check:
     """Return the ``contract`` check: FAIL naming every interval that broke its contract."""
     judged = [i for i in intervals if i.tube_contained is not None]
     if not judged:
@@ -383,6 +394,7 @@ __all__ = [
     "budget_class",
     "check_contract",
     "contract_of",
+    "contract_verdict",
     "envelope_bound",
     "envelope_excess",
     "judge_intervals",

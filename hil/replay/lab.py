@@ -39,9 +39,8 @@ from hil.core.geometry import wrap_angles
 from hil.core.records import Decision
 from hil.core.timeline import in_force
 from hil.core.tracking import AXES, DISPLAY_UNITS, for_display
-from hil.replay.controllers import ControllerCache
-from hil.replay.intervals import check_contract, judge_intervals
-from hil.replay.options import ReplayOptions
+from hil.replay.context import ReplayContext
+from hil.replay.intervals import check_contract
 from hil.replay.regression import Check, Finding, Interval, Status, time_s
 from hil.replay.stack_rerun import Rerun, rerun_stack
 from hil.replay.tracking_checks import check_tracking
@@ -272,20 +271,20 @@ def require_pose(run: RunData) -> None:
 
 
 def replay_lab(
-    run: RunData,
-    controllers: ControllerCache,
-    scenario: Scenario,
-    options: ReplayOptions,
-    loop: LoopConfig,
+    ctx: ReplayContext, loop: LoopConfig
 ) -> tuple[list[Check], tuple[Interval, ...], tuple[Decision, ...]]:
     """Replay a lab bag (module docstring); return its checks, intervals and re-run decisions.
+
+    Its checks are the replayer's where they apply (tracking, contract), made on the
+    re-run's view of the bag.
 
     Raises:
         ReplayError: The bag holds no pose (the stack cannot run without one).
     """
-    require_pose(run)
-    run = with_scenario_layout(run, scenario)
-    rerun = rerun_stack(run, controllers, options, lab_ticks(run, loop), loop)
+    require_pose(ctx.run)
+    run = with_scenario_layout(ctx.run, ctx.scenario)
+    ctx = ctx.on(run)
+    rerun = rerun_stack(run, ctx.controllers, ctx.options, lab_ticks(run, loop), loop)
     decisions = tuple(rerun.log.decisions)
     references = rerun.references()
     flown = flown_share(run.reference, references)
@@ -309,7 +308,7 @@ def replay_lab(
         )
     else:
         source = run if len(run.estimate) else dataclasses.replace(run, estimate=estimate)
-        tracking = check_tracking(source, options.tolerance)
+        tracking = check_tracking(ctx.on(source))
         what = (
             f"the bag's odometry ({topics.ODOM})"
             if len(run.estimate)
@@ -329,9 +328,10 @@ def replay_lab(
         reference=run.reference if len(run.reference) else references,
         events=(),
     )
-    intervals = judge_intervals(judged_run, controllers, scenario, checks)
+    contract = check_contract(ctx.on(judged_run).after(tuple(checks)))
+    intervals = contract.intervals
     if flown is not None and flown >= FLEW_SHARE:
-        checks.append(check_contract(intervals))
+        checks.append(contract)
     else:
         why = (
             "the bag holds no velocity command"

@@ -84,6 +84,8 @@ class Check:
         summary: One line.
         findings: The differences behind the outcome, in time order.
         metrics: Numbers worth keeping (tracking RMS, counts), JSON-ready.
+        intervals: The intervals judged one by one, for the check that judges them
+            (``contract``); kept in the report with ``ReplayOptions.intervals``.
     """
 
     name: str
@@ -91,6 +93,7 @@ class Check:
     summary: str
     findings: tuple[Finding, ...] = ()
     metrics: dict[str, Any] = field(default_factory=dict, hash=False)
+    intervals: tuple[Interval, ...] = field(default=(), compare=False, hash=False)
 
     def to_dict(self) -> dict[str, Any]:
         """Return a JSON-ready dictionary."""

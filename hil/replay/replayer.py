@@ -42,18 +42,20 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 from hil.bag.errors import ReplayError
 from hil.bag.run_data import RunData, load_run
 from hil.controllers.symbolic import SymbolicError
+from hil.replay.context import ReplayCheck, ReplayContext
 from hil.replay.controllers import ScenarioCache, ScenarioMismatchError, resolve_scenario
 from hil.replay.decisions import check_decisions
 from hil.replay.estimation_check import check_estimation
-from hil.replay.intervals import check_contract, judge_intervals
+from hil.replay.intervals import check_contract
 from hil.replay.lab import NOT_JUDGED, lab_topics, replay_lab, require_pose
 from hil.replay.options import ReplayOptions
-from hil.replay.regression import Interval, LogReport
+from hil.replay.regression import Check, LogReport
 from hil.replay.resim import check_resim
 from hil.replay.stack_rerun import check_stack
 from hil.replay.stop_check import check_stop
@@ -80,38 +82,53 @@ def replay_log(
     caches = caches or ScenarioCache(options.cache_dir)
     step = progress or (lambda _name: None)
     wall = time.perf_counter()
-    intervals: tuple[Interval, ...] = ()
     try:
         step("load")
         run = load_run(path, options.lab or lab_topics())
         if run.lab_only:
             return _replay_lab(run, options, caches, step, wall)
         scenario = resolve_scenario(run, options.scenario)
-        controllers = caches.get(scenario)
-        step("decisions")
-        checks = [check_decisions(run, controllers)]
-        step("tracking")
-        checks.append(check_tracking(run, options.tolerance))
-        if options.stack:
-            step("stack")
-            checks.append(check_stack(run, controllers, options))
-        if options.resim:
-            step("resim")
-            checks.append(check_resim(run, options.tolerance, controllers))
-        step("contract")
-        judged = judge_intervals(run, controllers, scenario, checks)
-        checks.append(check_contract(judged))
-        step("stop")
-        checks.append(check_stop(run, scenario))
-        step("estimation")
-        checks.append(check_estimation(run, scenario))
-        if options.intervals:
-            intervals = judged
+        ctx = ReplayContext(run, scenario, caches, options)
+        checks: tuple[Check, ...] = ()
+        for entry in CHECKS:
+            if entry.wanted(options):
+                step(entry.name)
+                checks += (entry.check(ctx.after(checks)),)
     except _REFUSED as err:
         return _error(path, err, wall)
-    return LogReport(
-        str(path), tuple(checks), run.warnings, "", time.perf_counter() - wall, intervals
-    )
+    intervals = tuple(i for c in checks for i in c.intervals) if options.intervals else ()
+    return LogReport(str(path), checks, run.warnings, "", time.perf_counter() - wall, intervals)
+
+
+def _always(_options: ReplayOptions) -> bool:
+    return True
+
+
+@dataclass(frozen=True)
+class CheckEntry:
+    """One check of the replay and when it is made.
+
+    Attributes:
+        name: The check's name (the progress step and ``Check.name``).
+        check: Makes it.
+        wanted: Whether the options ask for it.
+    """
+
+    name: str
+    check: ReplayCheck
+    wanted: Callable[[ReplayOptions], bool] = _always
+
+
+CHECKS: tuple[CheckEntry, ...] = (
+    CheckEntry("decisions", check_decisions),
+    CheckEntry("tracking", check_tracking),
+    CheckEntry("stack", check_stack, lambda o: o.stack),
+    CheckEntry("resim", check_resim, lambda o: o.resim),
+    CheckEntry("contract", check_contract),
+    CheckEntry("stop", check_stop),
+    CheckEntry("estimation", check_estimation),
+)
+"""The checks of a hil log, in order (the contract marks intervals the earlier ones failed)."""
 
 
 _REFUSED = (ReplayError, SymbolicError, ScenarioError, ValueError, OSError)
@@ -140,7 +157,7 @@ def _replay_lab(
     require_pose(run)
     step("stack")
     checks, intervals, decisions = replay_lab(
-        run, caches.get(scenario), scenario, options, options.lab_loop
+        ReplayContext(run, scenario, caches, options), options.lab_loop
     )
     notes = (
         f"a lab bag (only the lab's topics), replayed with scenario {options.scenario!r}",

@@ -19,9 +19,9 @@ import numpy as np
 
 from hil.bag.run_data import RunData, Series
 from hil.core.clock import NS_PER_S
-from hil.replay.controllers import ControllerCache, ScenarioMismatchError
+from hil.replay.context import ReplayContext
+from hil.replay.controllers import ScenarioMismatchError
 from hil.replay.decisions import BOUNDARY, TIE, compare_rerun_decisions
-from hil.replay.options import Tolerance
 from hil.replay.regression import Check, Finding, Status, time_s
 from hil.replay.stack_rerun import compared_until, divergence_note, tracking_of, until
 from hil.replay.tracking_checks import tracking_findings
@@ -71,7 +71,7 @@ def recorded_spec(run: RunData) -> tuple[SimRunSpec, str]:
     ), "first recorded pose (start not in the metadata)"
 
 
-def check_resim(run: RunData, tolerance: Tolerance, controllers: ControllerCache) -> Check:
+def check_resim(ctx: ReplayContext) -> Check:
     """Re-simulate the run with the current code and compare it with the recording.
 
     The trajectory is compared within ``Tolerance.resim_position_m``, the decisions
@@ -81,12 +81,10 @@ def check_resim(run: RunData, tolerance: Tolerance, controllers: ControllerCache
     trajectory, the trajectory, decisions and tracking error are compared up to it only.
     Whether the run docked is still compared: the guarantee holds on either branch.
 
-    Args:
-        run: The recorded run.
-        tolerance: Thresholds.
-        controllers: The current code's controllers for the recorded layouts (to judge a
-            decision taken the other way).
+    The context's controllers judge a decision taken the other way; its options give
+    the thresholds.
     """
+    run, tolerance, controllers = ctx.run, ctx.options.tolerance, ctx.controllers
     try:
         spec, source = recorded_spec(run)
     except (ScenarioMismatchError, ValueError) as err:

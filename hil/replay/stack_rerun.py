@@ -35,6 +35,7 @@ from hil.core.geometry import wrap_angles
 from hil.core.records import Event
 from hil.core.samples import ThrusterCommand
 from hil.core.tracking import TrackingSeries, tracking_error
+from hil.replay.context import ReplayContext
 from hil.replay.controllers import ControllerCache
 from hil.replay.decisions import BOUNDARY, TIE, Divergence, compare_rerun_decisions
 from hil.replay.options import ReplayOptions
@@ -245,7 +246,7 @@ def divergence_note(divergence: Divergence | None) -> str:
     )
 
 
-def check_stack(run: RunData, controllers: ControllerCache, options: ReplayOptions) -> Check:
+def check_stack(ctx: ReplayContext) -> Check:
     """Re-run the full stack on the recorded streams and compare with the recording.
 
     Estimates and references are compared within ``Tolerance.estimate``, thruster
@@ -254,6 +255,7 @@ def check_stack(run: RunData, controllers: ControllerCache, options: ReplayOptio
     that decision is accepted and reported (``boundary_decisions``, ``cost_ties``,
     ``divergence``) and nothing after it is compared.
     """
+    run, controllers, options = ctx.run, ctx.controllers, ctx.options
     if not len(run.pose) or not run.layouts:
         return Check("stack", Status.SKIP, "the log holds no poses or no obstacle layout")
     # Tick when the recording ticked (every tick sends a command or logs its failure):

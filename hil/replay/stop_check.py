@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from hil.bag.run_data import RunData
+from hil.replay.context import ReplayContext
 from hil.replay.regression import Check, Finding, Status, time_s
 from hil.runtime.assembly import obstacles_from_layout
 from hil.runtime.events import EventCode
@@ -27,8 +27,9 @@ STOPS = frozenset({EventCode.STOPPED.value, EventCode.ABORTED.value, EventCode.T
 """Events that start braking."""
 
 
-def check_stop(run: RunData, scenario: Scenario) -> Check:
+def check_stop(ctx: ReplayContext) -> Check:
     """Judge the braking after the run's first stop (see module docstring)."""
+    run, scenario = ctx.run, ctx.scenario
     stop = next((e for e in run.events if e.code in STOPS), None)
     if stop is None:
         return Check("stop", Status.SKIP, "the run did not stop (docked, or the log ends first)")

@@ -20,10 +20,9 @@ from typing import Any
 
 import numpy as np
 
-from hil.bag.run_data import RunData
 from hil.core.arrays import FloatArray
 from hil.core.tracking import AXES, DISPLAY_UNITS, TrackingSeries, for_display
-from hil.replay.options import Tolerance
+from hil.replay.context import ReplayContext
 from hil.replay.regression import Check, Finding, Status
 from hil.runs.summary import PAPER_TRACKING_ERROR
 
@@ -46,13 +45,14 @@ def _axes_text(values: FloatArray) -> str:
     return ", ".join(f"{a} {v:.5f} {u}" for a, v, u in zip(_AXES, values, _UNITS, strict=True))
 
 
-def check_tracking(run: RunData, tolerance: Tolerance) -> Check:
+def check_tracking(ctx: ReplayContext) -> Check:
     """Report the recorded tracking error per axis; FAIL only above thresholds set explicitly.
 
     Without ``--tolerance`` thresholds the RMS and largest error are figures, shown
     beside the paper's tank RMS (``paper_rms`` in the metrics), and the check passes.
     """
-    series = run.tracking_error()
+    series = ctx.run.tracking_error()
+    tolerance = ctx.options.tolerance
     if not len(series.t_ns):
         return Check("tracking", Status.SKIP, "no velocity references with estimates")
     rms = for_display(series.rms())

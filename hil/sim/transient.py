@@ -74,6 +74,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from hil.controllers.symbolic.abstraction import displacement
+from hil.controllers.symbolic.lattice import InputLattice
 from hil.core.arrays import FloatArray, IntArray
 from hil.core.geometry import wrap_angles
 from hil.core.transient import (
@@ -123,7 +124,6 @@ _AXES = ("surge_mps", "sway_mps", "yaw_rate_radps")
 _DIRECTIONS = np.array(
     [d for d in itertools.product((-1, 0, 1), repeat=3) if any(d)], dtype=np.int64
 )  # (26, 3): the non-zero one-step moves
-_MOVES = np.array(list(itertools.product((-1, 0, 1), repeat=3)), dtype=np.int64)  # (27, 3)
 
 RAMP_SETTLE = 2
 """Holds at a ramp's first input before it starts (the path there is itself a ramp)."""
@@ -373,6 +373,8 @@ class _Grid:
 
     def __init__(self, scenario: Scenario) -> None:
         lo, hi, step = input_grid(scenario)
+        self.lattice = InputLattice.of(scenario.inputs())
+        """The one-step rule, as the symbolic layer defines it."""
         self.lo = lo
         self.hi = hi
         self.step = np.where(step > 0.0, step, 1.0)  # a single-value axis has one index
@@ -391,10 +393,15 @@ class _Grid:
         ]
 
     def neighbours(self, idx: IntArray) -> IntArray:
-        """Return N(idx), shape (k, 3), k <= 27, idx included."""
-        cand = idx[None, :] + _MOVES
-        ok = np.all((cand >= 0) & (cand <= self.top), axis=1)
-        out: IntArray = cand[ok]
+        """Return N(idx) and idx, shape (k, 3), k <= 27, in ascending order (C order).
+
+        The inputs that may follow idx by the lattice's one-step rule
+        (:meth:`InputLattice.allowed_after`), as axis indices.
+        """
+        lattice = self.lattice
+        sizes = [len(a) for a in lattice.axes]
+        flat = (int(idx[0]) * sizes[1] + int(idx[1])) * sizes[2] + int(idx[2])
+        out: IntArray = lattice.index[np.sort(lattice.allowed_after(flat))].astype(np.int64)
         return out
 
     def walk_step(self, idx: IntArray, rng: np.random.Generator) -> IntArray:

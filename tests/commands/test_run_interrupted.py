@@ -15,6 +15,8 @@ from hil.bag.run_data import load_run
 from hil.cli import main
 from hil.core.records import Decision
 from hil.core.shapes import Rect
+from hil.replay.context import ReplayContext
+from hil.replay.controllers import ScenarioCache
 from hil.replay.options import ReplayOptions
 from hil.replay.regression import Status
 from hil.replay.replayer import replay_log
@@ -95,6 +97,6 @@ def test_ctrl_c_stops_the_run_cleanly_and_its_log_replays_as_interrupted(
                  float(eta[1]) + 0.1),
         )) for layout in run.layouts
     ))
-    failed = check_stop(blocked, scenario)
+    failed = check_stop(ReplayContext(blocked, scenario, ScenarioCache()))
     assert failed.status is Status.FAIL
     assert "from an obstacle" in failed.findings[0].message

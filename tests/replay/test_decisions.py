@@ -11,6 +11,7 @@ import pytest
 from hil.bag.run_data import load_run
 from hil.controllers.symbolic import cost
 from hil.core.records import Decision
+from hil.replay.context import ReplayContext
 from hil.replay.controllers import ScenarioCache
 from hil.replay.decisions import (
     BOUNDARY_TOLERANCE,
@@ -185,7 +186,8 @@ def test_a_decision_on_a_cell_boundary_is_accepted_either_way(
     assert controller.locate(moved) != d.cell  # the recorded state now lies in the next cell
     tampered = (*run.decisions[:k], dataclasses.replace(d, state=tuple(moved)),
                 *run.decisions[k + 1:])
-    check = check_decisions(dataclasses.replace(run, decisions=tampered), controllers)
+    tampered_run = dataclasses.replace(run, decisions=tampered)
+    check = check_decisions(ReplayContext(tampered_run, load_scenario("coarse"), caches))
     if accepted:
         assert check.status is Status.PASS, check.findings
         assert check.metrics["boundary_decisions"] == 1

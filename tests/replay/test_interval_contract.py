@@ -18,6 +18,7 @@ import pytest
 from hil.bag.reader import BagReader
 from hil.bag.run_data import RunData, load_run
 from hil.core.records import StateEstimate
+from hil.replay.context import ReplayContext
 from hil.replay.controllers import ScenarioCache, resolve_scenario
 from hil.replay.intervals import VELOCITY_ESTIMATE_TOLERANCE, check_contract, judge_intervals
 from hil.replay.options import ReplayOptions
@@ -46,8 +47,8 @@ def cache() -> ScenarioCache:
 def _judge(run: RunData, cache: ScenarioCache) -> tuple[tuple[Interval, ...], Check]:
     """Judge `run` against its scenario's measured transient budget."""
     scenario = resolve_scenario(run)
-    intervals = judge_intervals(run, cache.get(scenario), scenario, [])
-    return intervals, check_contract(intervals)
+    check = check_contract(ReplayContext(run, scenario, cache))
+    return check.intervals, check
 
 
 def _edit_estimates(src: Path, dst: Path, start_ns: int, stop_ns: int,

@@ -12,9 +12,12 @@ import pytest
 from hil.bag.reader import BagInfo
 from hil.bag.run_data import RunData, Series
 from hil.core.records import Decision
-from hil.replay.options import Tolerance
-from hil.replay.regression import Status
+from hil.replay.context import ReplayContext
+from hil.replay.controllers import ScenarioCache
+from hil.replay.options import ReplayOptions, Tolerance
+from hil.replay.regression import Check, Status
 from hil.replay.tracking_checks import check_tracking
+from hil.scenarios import load_scenario
 
 
 def _synthetic_run(errors: dict[int, float]) -> RunData:
@@ -42,12 +45,18 @@ def _synthetic_run(errors: dict[int, float]) -> RunData:
     )
 
 
+def _tracking(run: RunData, tolerance: Tolerance) -> Check:
+    """The tracking check of `run` with `tolerance` (it needs no controller)."""
+    options = ReplayOptions(tolerance)
+    return check_tracking(ReplayContext(run, load_scenario("coarse"), ScenarioCache(), options))
+
+
 def test_tracking_metrics_show_yaw_in_degrees_per_second() -> None:
     run = _synthetic_run({})
     yaw = np.zeros((80, 6))
     yaw[:, 5] = 0.01  # rad/s against a zero reference
     run = dataclasses.replace(run, estimate=Series(run.estimate.t_ns, yaw))
-    check = check_tracking(run, Tolerance())
+    check = _tracking(run, Tolerance())
     assert check.metrics["rms"] == pytest.approx([0.0, 0.0, math.degrees(0.01)])
     assert check.metrics["max_abs"][2] == pytest.approx(math.degrees(0.01))
     assert "yaw 0.57296 deg/s" in check.summary
@@ -55,12 +64,12 @@ def test_tracking_metrics_show_yaw_in_degrees_per_second() -> None:
 
 def test_tracking_is_a_figure_unless_a_threshold_is_set() -> None:
     run = _synthetic_run(dict.fromkeys(range(80), 0.05))  # far above the paper's tank RMS
-    figures = check_tracking(run, Tolerance())
+    figures = _tracking(run, Tolerance())
     assert figures.status is Status.PASS
     assert "no threshold set (the paper's tank RMS, for comparison: 0.00768" in figures.summary
     assert figures.metrics["paper_rms"] == [0.00768, 0.00431, 0.62108]
-    enforced = check_tracking(run, Tolerance.parse("surge=0.01"))
+    enforced = _tracking(run, Tolerance.parse("surge=0.01"))
     assert enforced.status is Status.FAIL
     (finding,) = enforced.findings
     assert finding.data["axis"] == "surge"
-    assert check_tracking(run, Tolerance.parse("sway=0.01")).status is Status.PASS
+    assert _tracking(run, Tolerance.parse("sway=0.01")).status is Status.PASS

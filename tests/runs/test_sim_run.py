@@ -201,11 +201,16 @@ def test_logs_without_the_controller_topic_are_read_from_the_event_texts() -> No
     full = legacy_controller_ready(event("controller v3 in 0.125 s"))
     assert full is not None
     assert (full.version, full.seconds, full.complete) == (3, 0.125, True)
-    assert full.source is ControllerSource.UNKNOWN and full.layout_t_ns == -1
+    assert full.source is ControllerSource.UNKNOWN
+    assert full.layout_t_ns == -1
     suite = legacy_controller_ready(event("controller v4"))  # the suite drops wall times
-    assert suite is not None and suite.version == 4 and math.isnan(suite.seconds)
+    assert suite is not None
+    assert suite.version == 4
+    assert math.isnan(suite.seconds)
     early = legacy_controller_ready(event("controller v5 early in 0.5 s: it covers the vessel"))
-    assert early is not None and not early.complete and early.seconds == 0.5
+    assert early is not None
+    assert not early.complete
+    assert early.seconds == 0.5
     assert legacy_controller_ready(event("synthesis slower than 2 s")) is None
     other = Event(5, EventLevel.WARN, "synthesis_overrun", "controller v2 in 1.0 s")
     assert legacy_controller_ready(other) is None
