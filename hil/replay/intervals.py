@@ -43,7 +43,7 @@ from hil.core.arrays import FloatArray
 from hil.core.clock import NS_PER_S
 from hil.core.records import Decision
 from hil.core.tracking import AXES, DISPLAY_UNITS, for_display
-from hil.core.transient import TransientBudget
+from hil.core.transient import BudgetClass, TransientBudget
 from hil.replay.context import ReplayContext
 from hil.replay.controllers import ControllerCache
 from hil.replay.decisions import decision_controllers
@@ -272,9 +272,10 @@ def judge_intervals(
                     )
                 if not descent:
                     v = int(contract.end_values(pose)[0])
+                    first = contract.budget_class == BudgetClass.START
                     notes.append(
                         f"value {'losing' if v < 0 else v} at {time_s(when)} not below the "
-                        f"decision's {contract.value if contract.budget_class != 2 else 'win'}"
+                        f"decision's {'win' if first else contract.value}"
                     )
         mask = (series.t_ns >= d.t_ns) & (series.t_ns < max(end, d.t_ns + 1))
         err = series.error[mask]

@@ -44,7 +44,8 @@ from hil.replay.tracking_checks import tracking_findings
 from hil.runs.sim_run import spec_from_json
 from hil.runs.stack_assembly import build_runtime
 from hil.runtime.events import EventCode
-from hil.runtime.loop import Mode, World
+from hil.runtime.loop import World
+from hil.runtime.mode import Mode
 from hil.runtime.resynthesis import ResynthesisMode
 from hil.runtime.settings import LoopConfig
 from hil.runtime.stats import RunStats

@@ -25,7 +25,8 @@ from hil.core.config import from_table, load_toml
 from hil.runs.stack_assembly import build_runtime, scenario_hash, synthesizer_for
 from hil.runs.summary import RunSummary, summarize_run
 from hil.runtime.assembly import layout_from_scenario, warm_up_kernels
-from hil.runtime.loop import Mode, Runtime, World
+from hil.runtime.loop import Runtime, World
+from hil.runtime.mode import Mode
 from hil.runtime.resynthesis import ResynthesisMode
 from hil.runtime.settings import LoopConfig
 from hil.runtime.signals import stop_on_signals

@@ -10,7 +10,8 @@ on it.
 """
 
 from hil.runtime.events import EventCode
-from hil.runtime.loop import Mode, Runtime, World
+from hil.runtime.loop import Runtime, World
+from hil.runtime.mode import Mode
 from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer, SynthesisResult
 from hil.runtime.settings import LoopConfig
 from hil.runtime.stats import RunStats

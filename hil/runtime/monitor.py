@@ -33,6 +33,7 @@ import numpy as np
 from hil.controllers.symbolic import DecisionContract
 from hil.core.arrays import FloatArray
 from hil.core.records import EventLevel
+from hil.core.transient import BudgetClass
 from hil.runtime.events import EventCode
 from hil.runtime.settings import NS_PER_S
 
@@ -166,7 +167,7 @@ class Monitor:
             shown = "losing" if value < 0 else str(value)
             if c.staying:
                 shown, was = "outside the safety set", "a staying decision's (in it)"
-            elif c.budget_class == 2:
+            elif c.budget_class == BudgetClass.START:
                 was = "a first decision's (any winning value)"
             else:
                 was = str(c.value)

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from hil.core.arrays import FloatArray
+from hil.runtime.events import EventCode
 
 __all__ = ["RunStats"]
 
@@ -67,3 +68,14 @@ class RunStats:
     eta_hat: list[FloatArray] = field(default_factory=list)
     nu_hat: list[FloatArray] = field(default_factory=list)
     nu_ref: list[FloatArray] = field(default_factory=list)
+
+    def count_violation(self, code: EventCode, size: float) -> None:
+        """Count one broken promise of a decision (the runtime monitor's `code`, `size` in m)."""
+        if code is EventCode.TUBE_EXIT:
+            self.tube_exits += 1
+            self.worst_tube_exit_m = max(self.worst_tube_exit_m, size)
+        elif code is EventCode.SUCCESSOR_MISS:
+            self.successor_misses += 1
+            self.worst_successor_miss_m = max(self.worst_successor_miss_m, size)
+        else:
+            self.value_not_decreasing += 1

@@ -15,9 +15,11 @@ import pytest
 from hil.adapters.sim import SimConfig, SimWorld
 from hil.runs.stack_assembly import build_runtime, default_start, synthesizer_for
 from hil.runtime.assembly import layout_from_scenario
-from hil.runtime.loop import MAX_BRAKE_S, Mode, Runtime, World
+from hil.runtime.loop import Runtime, World
+from hil.runtime.mode import Mode
 from hil.runtime.resynthesis import ResynthesisMode
 from hil.runtime.settings import NS_PER_S, LoopConfig
+from hil.runtime.stopping import MAX_BRAKE_S
 from hil.runtime.trace import MemoryLog
 from hil.scenarios import load_scenario
 from hil.sim.plant import TR_NU

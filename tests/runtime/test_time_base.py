@@ -17,9 +17,10 @@ from hil.bag.recorder import Recorder
 from hil.core.samples import ImuSample, PoseSample, ThrusterCommand
 from hil.runs.stack_assembly import build_runtime, default_start, synthesizer_for
 from hil.runtime.assembly import layout_from_scenario
-from hil.runtime.loop import REST_HOLD_S, World
+from hil.runtime.loop import World
 from hil.runtime.resynthesis import ResynthesisMode
 from hil.runtime.settings import NS_PER_S, LoopConfig
+from hil.runtime.stopping import REST_HOLD_S
 from hil.scenarios import load_scenario
 
 
