@@ -61,14 +61,9 @@ from hil.sim.closed_loop import (
     LowLevelConfig,
     simulate_closed_loop,
 )
-from hil.sim.transient import (
-    CLASS_NAMES,
-    DIGITS,
-    TransientRecipe,
-    derive_transient,
-    input_grid,
-    toml_table,
-)
+from hil.sim.reference_paths import input_grid
+from hil.sim.transient import CLASS_NAMES, derive_transient, toml_table
+from hil.sim.transient_runs import DIGITS, TransientRecipe
 
 F = NDArray[np.float64]
 

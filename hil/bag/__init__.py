@@ -43,7 +43,8 @@ if TYPE_CHECKING:
     from hil.bag.reader import BagInfo, BagReader, SkippedMessage, TopicInfo, describe
     from hil.bag.recorder import Recorder, RecorderConfig, RecordSink
     from hil.bag.recover import RecoveryReport, inspect_recovery, recover
-    from hil.bag.run_data import Repair, RepairKind, RunData, Series, load_run
+    from hil.bag.repairs import Repair, RepairKind
+    from hil.bag.run_data import RunData, Series, load_run
     from hil.bag.run_info import RunInfo
     from hil.bag.storage import RawMessage
 
@@ -76,8 +77,8 @@ _WHERE: dict[str, str] = {
     "RecorderConfig": "recorder",
     "RecordSink": "recorder",
     "RunInfo": "run_info",
-    "Repair": "run_data",
-    "RepairKind": "run_data",
+    "Repair": "repairs",
+    "RepairKind": "repairs",
     "RunData": "run_data",
     "Series": "run_data",
     "load_run": "run_data",

@@ -31,7 +31,6 @@ A stream must be in one frame, and poses in the arena frame, else
 
 from __future__ import annotations
 
-import enum
 import math
 import re
 from collections.abc import Callable, Mapping, Sequence
@@ -40,7 +39,6 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 import numpy as np
-from numpy.typing import NDArray
 
 from hil.bag import topics
 from hil.bag.columns import to_columns
@@ -55,6 +53,7 @@ from hil.bag.lab_streams import (
 )
 from hil.bag.messages import Record
 from hil.bag.reader import BagInfo, BagReader, SkippedMessage
+from hil.bag.repairs import Repair, RepairKind, tidy
 from hil.bag.run_info import RunInfo
 from hil.bag.storage import RawMessage
 from hil.core.arrays import FloatArray, IntArray
@@ -149,49 +148,6 @@ def legacy_controller_ready(event: Event) -> ControllerReady | None:
         event.t_ns, int(match.group(1)), seconds, ControllerSource.UNKNOWN,
         match.group(2) is None, math.nan, -1,
     )  # fmt: skip
-
-
-class RepairKind(enum.Enum):
-    """What the loader did to some messages of a topic (see the module docstring)."""
-
-    BAD = "bad"
-    REORDERED = "reordered"
-    DUPLICATE = "duplicate"
-    SAME_STAMP = "same_stamp"
-
-
-@dataclass(frozen=True, slots=True)
-class Repair:
-    """Messages of one topic the loader left out, reordered or flagged.
-
-    Attributes:
-        topic: The topic.
-        kind: What was done.
-        count: How many messages.
-        t_ns: Stamp of the first one (ns).
-        detail: The first one's reason (bad messages) or the stamp it followed
-            (reordered ones); "" otherwise.
-    """
-
-    topic: str
-    kind: RepairKind
-    count: int
-    t_ns: int
-    detail: str = ""
-
-    def __str__(self) -> str:
-        """Return the repair as one line."""
-        what = {
-            RepairKind.BAD: f"skipped {self.count} message(s) that do not decode to valid "
-            f"samples, first t={self.t_ns} ns: {self.detail}",
-            RepairKind.REORDERED: f"{self.count} stamp(s) go back in time, first at "
-            f"t={self.t_ns} ns after t={self.detail} ns; put in stamp order",
-            RepairKind.DUPLICATE: f"dropped {self.count} duplicated message(s), "
-            f"first at t={self.t_ns} ns",
-            RepairKind.SAME_STAMP: f"{self.count} message(s) share a stamp with different "
-            f"values, first at t={self.t_ns} ns; all kept",
-        }[self.kind]
-        return f"{self.topic}: {what}"
 
 
 @dataclass(frozen=True, slots=True)
@@ -333,65 +289,6 @@ class RunData:
 _T = TypeVar("_T")
 
 
-def _tidy(
-    topic: str,
-    t_ns: IntArray,
-    same: Callable[[int, int], bool],
-    repairs: list[Repair],
-    *,
-    report_ties: bool,
-) -> NDArray[np.intp]:
-    """Apply the rule to one topic: return the indices kept, in stamp order.
-
-    Args:
-        topic: Topic name (for the report).
-        t_ns: Stamps in recorded order, shape (N,).
-        same: Whether messages i and j (recorded indices) hold the same values.
-        repairs: Where to add what was done.
-        report_ties: Whether to report messages sharing a stamp with different values.
-    """
-    n = len(t_ns)
-    order = np.arange(n, dtype=np.intp)
-    if n < 2:
-        return order
-    back = np.flatnonzero(t_ns[1:] < t_ns[:-1])
-    if back.size:
-        repairs.append(
-            Repair(
-                topic,
-                RepairKind.REORDERED,
-                int(back.size),
-                int(t_ns[back[0] + 1]),
-                str(int(t_ns[back[0]])),
-            )
-        )
-        order = np.argsort(t_ns, kind="stable").astype(np.intp)
-    stamps = t_ns[order]
-    tied = np.flatnonzero(stamps[1:] == stamps[:-1])
-    if not tied.size:
-        return order
-    keep = np.ones(n, dtype=bool)
-    dropped: list[int] = []
-    clashes: list[int] = []
-    start = 0
-    while start < n:  # only runs of equal stamps need a look
-        stop = start + 1
-        while stop < n and stamps[stop] == stamps[start]:
-            stop += 1
-        for a in range(start + 1, stop):
-            if any(keep[b] and same(int(order[b]), int(order[a])) for b in range(start, a)):
-                keep[a] = False
-                dropped.append(int(stamps[a]))
-            else:
-                clashes.append(int(stamps[a]))
-        start = stop
-    if dropped:
-        repairs.append(Repair(topic, RepairKind.DUPLICATE, len(dropped), dropped[0]))
-    if clashes and report_ties:
-        repairs.append(Repair(topic, RepairKind.SAME_STAMP, len(clashes), clashes[0]))
-    return order[keep]
-
-
 def _polygon(msg: Any) -> FloatArray:
     xs = np.asarray(msg.x, dtype=np.float64).reshape(-1)
     ys = np.asarray(msg.y, dtype=np.float64).reshape(-1)
@@ -419,7 +316,7 @@ class _Loader:
         return t_ns, values
 
     def _tidied(self, topic: str, t_ns: IntArray, values: FloatArray) -> Series:
-        keep = _tidy(
+        keep = tidy(
             topic,
             t_ns,
             lambda i, j: bool(np.array_equal(values[i], values[j])),
@@ -517,7 +414,7 @@ class _Loader:
         items = self._decoded(topic, raws, decode)
         keys = [key(x) for x in items]
         t_ns = np.array([k[0] for k in keys], dtype=np.int64)
-        keep = _tidy(topic, t_ns, lambda i, j: keys[i] == keys[j], self.repairs, report_ties=False)
+        keep = tidy(topic, t_ns, lambda i, j: keys[i] == keys[j], self.repairs, report_ties=False)
         return tuple(items[int(k)] for k in keep)
 
     def record(self, raw: RawMessage) -> Record:

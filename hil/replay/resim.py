@@ -21,7 +21,7 @@ from hil.bag.run_data import RunData, Series
 from hil.core.clock import NS_PER_S
 from hil.replay.context import ReplayContext
 from hil.replay.controllers import ScenarioMismatchError
-from hil.replay.decisions import BOUNDARY, TIE, compare_rerun_decisions
+from hil.replay.divergence import BOUNDARY, TIE, compare_rerun_decisions
 from hil.replay.regression import Check, Finding, Status, time_s
 from hil.replay.stack_rerun import compared_until, divergence_note, tracking_of, until
 from hil.replay.tracking_checks import tracking_findings

@@ -37,7 +37,7 @@ from hil.core.samples import ThrusterCommand
 from hil.core.tracking import TrackingSeries, tracking_error
 from hil.replay.context import ReplayContext
 from hil.replay.controllers import ControllerCache
-from hil.replay.decisions import BOUNDARY, TIE, Divergence, compare_rerun_decisions
+from hil.replay.divergence import BOUNDARY, TIE, Divergence, compare_rerun_decisions
 from hil.replay.options import ReplayOptions
 from hil.replay.regression import Check, Finding, Status, time_s
 from hil.replay.tracking_checks import tracking_findings

@@ -66,196 +66,47 @@ the packaged scenarios ship it and that fresh runs stay inside it.
 
 from __future__ import annotations
 
-import itertools
-import math
 import time
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from hil.controllers.symbolic.abstraction import displacement
-from hil.controllers.symbolic.lattice import InputLattice
 from hil.core.arrays import FloatArray, IntArray
 from hil.core.geometry import wrap_angles
 from hil.core.transient import (
-    LATE_S,
     N_CLASSES,
-    START_PERIODS,
-    BudgetClass,
     TransientBudget,
     horizon_bins,
 )
 from hil.scenarios import Scenario
 from hil.sim.closed_loop import ClosedLoopResult, LowLevelConfig, simulate_closed_loop
-from hil.sim.errors import ClosedLoopConfigError
+from hil.sim.transient_runs import (
+    DIGITS,
+    Run,
+    TransientRecipe,
+    classify,
+    hold_streaks,
+    recipe_runs,
+)
 
 __all__ = [
     "CLASS_NAMES",
-    "DIGITS",
-    "RAMP_SETTLE",
     "BoundRatios",
     "Measured",
-    "Run",
     "TransientDerivation",
-    "TransientRecipe",
     "check_bound",
-    "classify",
     "derive_transient",
-    "euler_tour",
     "fly",
-    "hold_streaks",
-    "input_grid",
     "measure",
-    "period_steps",
-    "ramp_family",
-    "recipe_runs",
     "round_up",
     "toml_table",
 ]
-
-DIGITS = 4
-"""Decimals of the ``[transient]`` entries (m/s, m/s, rad/s, m, rad)."""
 
 CLASS_NAMES = ("hold", "change", "start")
 """The classes' names, by :class:`~hil.core.transient.BudgetClass` (the TOML key prefixes)."""
 
 _AXES = ("surge_mps", "sway_mps", "yaw_rate_radps")
-
-_DIRECTIONS = np.array(
-    [d for d in itertools.product((-1, 0, 1), repeat=3) if any(d)], dtype=np.int64
-)  # (26, 3): the non-zero one-step moves
-
-RAMP_SETTLE = 2
-"""Holds at a ramp's first input before it starts (the path there is itself a ramp)."""
-
-
-@dataclass(frozen=True, slots=True)
-class TransientRecipe:
-    """How the transient budget is measured (the default: ~100 s on one core, 186,000 s flown).
-
-    Attributes:
-        tours: Randomized Euler tours over every (p, u in N(p)) pair, one run each.
-        walks: Long random walks from rest, one run each.
-        walk_s: Length of each walk (s).
-        sweeps: Whether to fly the 26 ramps (one run).
-        ramps: Passes over the systematic family (0: none), one run per target each.
-        ramp_steps: Longest ramp of the family (changes along one direction).
-        ramp_holds: Holds of the target after each ramp of the family.
-        ramp_targets: ``all`` inputs or only the lattice's ``edges`` (and corners).
-        starts: Passes over every (p*, u in N(p*)) pair starting moving, one run each;
-            each pass also starts once from rest to every u in N(p*), p* the input
-            nearest zero.
-        start_corners: Whether to add, for every pair, a start at the corner of the
-            half-step box around p* farthest from u, then u held.
-        start_share: Share of the pairs each start pass flies (drawn at random; 1: every
-            pair), for quick checks.
-        start_periods: Periods of each start run (the first START_PERIODS are of class
-            start, the one after them shows what a start leaves to a hold or change).
-        bin_s: Width of the time bins (s); as many bins as cover tau + LATE_S.
-        safety_factor: Factor on every measured maximum.
-        position_margin_m: Added to each scaled position deviation (m).
-        heading_margin_rad: Added to each scaled heading deviation (rad).
-        estimation_after_s: The EKF's errors count from this far into each run (s): the
-            runtime's first decision waits this long for the filter
-            (``LoopConfig.observer_settle_s``; a test keeps them equal).
-        estimation_factor: Factor on the EKF's measured errors: their tail is long (a
-            1,000-run campaign met 2.6 mm against 1.7 mm measured here).
-        seed: Seed of the references, period lengths, starts and sensor noise (a
-            derivation is a deterministic function of the recipe).
-    """
-
-    tours: int = 2
-    walks: int = 4
-    walk_s: float = 180.0
-    sweeps: bool = True
-    ramps: int = 1
-    ramp_steps: int = 4
-    ramp_holds: int = 4
-    ramp_targets: str = "all"
-    starts: int = 1
-    start_corners: bool = True
-    start_share: float = 1.0
-    start_periods: int = START_PERIODS + 1
-    bin_s: float = 0.25
-    safety_factor: float = 1.25
-    position_margin_m: float = 0.002
-    heading_margin_rad: float = 0.002
-    estimation_after_s: float = 1.0
-    estimation_factor: float = 2.0
-    seed: int = 2000
-
-    def describe(self) -> str:
-        """Return the one-line source text a scenario stores with its budget."""
-        share = "all" if self.start_share >= 1.0 else f"{self.start_share:g} of the"
-        return (
-            "hil.sim.transient (python -m bench lowlevel): max deviation from the exact arc "
-            f"(|p - pbar|, |psi - psibar|) per class and {self.bin_s:g}-s bin, running max, "
-            f"x{self.safety_factor:g} + {self.position_margin_m:g} m / "
-            f"{self.heading_margin_rad:g} rad; max |nu - nu_ref| x{self.safety_factor:g}; "
-            f"EKF pose error after {self.estimation_after_s:g} s x{self.estimation_factor:g}; "
-            f"rounded up to 1e-{DIGITS}; periods of tau to tau + {LATE_S:g} s (uniform, "
-            f"whole physics steps); {self.tours} Euler tours of all (p, u in N(p)) pairs, "
-            f"{self.walks} walks x {self.walk_s:g} s, {'26 ramps, ' if self.sweeps else ''}"
-            f"{self._family()}"
-            f"starts from {self.starts}"
-            f"{' + 1 (farthest corner)' if self.start_corners else ''} x {share} pairs "
-            f"and from rest, {self.start_periods} periods each; seed {self.seed}; the "
-            "runtime's low level on the simulated plant, sensors and EKF"
-        )
-
-    def _family(self) -> str:
-        if self.ramps <= 0:
-            return ""
-        return (
-            f"{self.ramps} x the family (every one-step direction into {self.ramp_targets} "
-            f"inputs, ramps of 1-{self.ramp_steps} steps, {self.ramp_holds} holds after), "
-        )
-
-    def __post_init__(self) -> None:
-        if self.ramp_targets not in ("all", "edges"):
-            raise ClosedLoopConfigError(
-                f"ramp_targets must be 'all' or 'edges', got {self.ramp_targets!r}"
-            )
-        if self.ramp_steps < 1 or self.ramp_holds < 1:
-            raise ClosedLoopConfigError(
-                f"ramp_steps and ramp_holds must be >= 1, got {self.ramp_steps}, {self.ramp_holds}"
-            )
-
-
-@dataclass(frozen=True, slots=True, eq=False)
-class Run:
-    """One closed-loop run of the recipe: its references, period lengths and start.
-
-    Attributes:
-        kind: ``tour``, ``walk``, ``sweeps``, ``ramps`` (the systematic family), ``start``
-            (moving), ``corner`` or ``rest``.
-        refs: References, shape (N, 3) (m/s, m/s, rad/s), one per period.
-        steps: Length of each period in physics steps, shape (N,).
-        previous: p*, the input the run starts near, shape (3,): the input nearest zero
-            from rest; the first reference is in N(p*).
-        nu0: Initial true velocity, shape (3,).
-        eta0: Initial pose, shape (3,) (m, m, rad).
-        seed: Sensor-noise seed.
-    """
-
-    kind: str
-    refs: FloatArray
-    steps: IntArray
-    previous: FloatArray
-    nu0: FloatArray
-    eta0: FloatArray
-    seed: int
-
-    def step_refs(self) -> FloatArray:
-        """Return the reference at every physics step, shape (sum(steps), 3)."""
-        out: FloatArray = np.repeat(self.refs, self.steps, axis=0)
-        return out
-
-    def starts(self) -> IntArray:
-        """Return the physics step each period begins at, shape (N,)."""
-        out: IntArray = np.concatenate(([0], np.cumsum(self.steps)[:-1])).astype(np.int64)
-        return out
-
 
 @dataclass(frozen=True, slots=True)
 class Measured:
@@ -352,287 +203,10 @@ def _factors(bound: FloatArray, measured: FloatArray) -> FloatArray:
     return out
 
 
-def input_grid(scenario: Scenario) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Return the scenario's input grid as (lo, hi, step), each (3,): surge, sway, yaw rate."""
-    axes = (scenario.surge, scenario.sway, scenario.yaw_rate)
-    lo = np.array([a.min for a in axes])
-    hi = np.array([a.max for a in axes])
-    step = np.array([a.step for a in axes])
-    return lo, hi, step
-
-
 def round_up(values: FloatArray, digits: int = DIGITS) -> FloatArray:
     """Return `values` rounded up to `digits` decimals (same shape)."""
     scale = 10.0**digits
     out: FloatArray = np.ceil(np.asarray(values, dtype=np.float64) * scale - 1e-9) / scale
-    return out
-
-
-class _Grid:
-    """The scenario's input grid in index space: inputs lo + idx * step, idx in [0, top]."""
-
-    def __init__(self, scenario: Scenario) -> None:
-        lo, hi, step = input_grid(scenario)
-        self.lattice = InputLattice.of(scenario.inputs())
-        """The one-step rule, as the symbolic layer defines it."""
-        self.lo = lo
-        self.hi = hi
-        self.step = np.where(step > 0.0, step, 1.0)  # a single-value axis has one index
-        self.top = np.round((hi - lo) / self.step).astype(np.int64)
-        self.zero = np.clip(np.round(-lo / self.step).astype(np.int64), 0, self.top)
-
-    def value(self, idx: IntArray) -> FloatArray:
-        out: FloatArray = self.lo + np.asarray(idx) * self.step
-        return out
-
-    def inputs(self) -> list[IntArray]:
-        """Return the index of every input, surge slowest."""
-        return [
-            np.array(i, dtype=np.int64)
-            for i in itertools.product(*(range(int(t) + 1) for t in self.top))
-        ]
-
-    def neighbours(self, idx: IntArray) -> IntArray:
-        """Return N(idx) and idx, shape (k, 3), k <= 27, in ascending order (C order).
-
-        The inputs that may follow idx by the lattice's one-step rule
-        (:meth:`InputLattice.allowed_after`), as axis indices.
-        """
-        lattice = self.lattice
-        sizes = [len(a) for a in lattice.axes]
-        flat = (int(idx[0]) * sizes[1] + int(idx[1])) * sizes[2] + int(idx[2])
-        out: IntArray = lattice.index[np.sort(lattice.allowed_after(flat))].astype(np.int64)
-        return out
-
-    def walk_step(self, idx: IntArray, rng: np.random.Generator) -> IntArray:
-        """Return the next index of a walk: hold w.p. 1/3, else a uniform other neighbour."""
-        if rng.random() < 1.0 / 3.0:
-            return idx
-        others = [n for n in self.neighbours(idx) if np.any(n != idx)]
-        if not others:
-            return idx
-        out: IntArray = others[int(rng.integers(len(others)))]
-        return out
-
-    def walk(self, idx: IntArray, n: int, rng: np.random.Generator) -> list[IntArray]:
-        """Return `n` walk indices after `idx`."""
-        out = []
-        for _ in range(n):
-            idx = self.walk_step(idx, rng)
-            out.append(idx)
-        return out
-
-    def path(self, a: IntArray, b: IntArray) -> list[IntArray]:
-        """Return the indices after `a` on a shortest one-step-per-axis path to `b`."""
-        out = []
-        while np.any(a != b):
-            a = a + np.sign(b - a)
-            out.append(a)
-        return out
-
-
-def euler_tour(
-    scenario: Scenario, rng: np.random.Generator, hold_p: float = 1.0 / 3.0
-) -> FloatArray:
-    """Return the references of a randomized Euler circuit over every (p, u in N(p)) pair.
-
-    The graph has an edge p -> u for every input p and every u in N(p) (p included):
-    every node has as many edges out as in (u in N(p) iff p in N(u)) and the graph is
-    connected, so a circuit uses each edge once (Hierholzer, the edges of each node
-    taken in random order). It starts and ends at the input nearest zero, which is not
-    itself a reference: the reference before the first period. After each change the
-    reference is held one more period with probability `hold_p` (a circuit alone holds
-    one period in 27), so that the hold after every change is in the sample too.
-
-    Returns:
-        Shape (E + holds, 3): one reference per period, E the number of pairs.
-    """
-    g = _Grid(scenario)
-    nodes = g.inputs()
-    flat = {tuple(int(c) for c in n): k for k, n in enumerate(nodes)}
-    out_edges: list[list[int]] = []
-    for n in nodes:
-        succ = [flat[tuple(int(c) for c in m)] for m in g.neighbours(n)]
-        rng.shuffle(succ)
-        out_edges.append(succ)
-    start = flat[tuple(int(c) for c in g.zero)]
-    stack = [start]
-    circuit: list[int] = []
-    while stack:
-        v = stack[-1]
-        if out_edges[v]:
-            stack.append(out_edges[v].pop())
-        else:
-            circuit.append(stack.pop())
-    circuit.reverse()
-    refs: list[FloatArray] = []
-    for a, b in itertools.pairwise(circuit):
-        refs.append(g.value(nodes[b]))
-        if a != b and rng.random() < hold_p:
-            refs.append(refs[-1])
-    return np.array(refs)
-
-
-def _sweeps(g: _Grid) -> list[IntArray]:
-    """Return the indices of 26 ramps flown one after another, from the input nearest zero.
-
-    For each direction d: a shortest path to the side of the grid the ramp starts from,
-    two holds, the ramp along d until every moving axis meets the grid's edge, two holds.
-    """
-    idx = g.zero.copy()
-    out: list[IntArray] = []
-    for d in _DIRECTIONS:
-        first = np.where(d > 0, 0, np.where(d < 0, g.top, idx))
-        out += g.path(idx, first)
-        out += [first, first]
-        idx = first
-        while True:
-            nxt = np.clip(idx + d, 0, g.top)
-            if np.all(nxt == idx):
-                break
-            idx = nxt
-            out.append(idx)
-        out += [idx, idx]
-    return out
-
-
-def ramp_family(g: _Grid, max_steps: int, holds: int, targets: str = "all") -> list[list[IntArray]]:
-    """Return the systematic family's reference indices, one list per target input.
-
-    For each target u (every input, or with ``targets="edges"`` those with at least two
-    axes at the grid's bounds), from the input nearest zero: for every direction d of
-    the 26 with u - d on the grid and every k in 1..`max_steps` with u - k d on the
-    grid, a one-step path to u - k d, :data:`RAMP_SETTLE` holds there, the k changes
-    into u and `holds` holds of u.
-    """
-    out: list[list[IntArray]] = []
-    for u in g.inputs():
-        at_bound = int(np.sum((u == 0) | (u == g.top)))
-        if targets == "edges" and at_bound < 2:
-            continue
-        idx = g.zero.copy()
-        seq: list[IntArray] = []
-        for d in _DIRECTIONS:
-            for k in range(1, max_steps + 1):
-                first = u - k * d
-                if np.any(first < 0) or np.any(first > g.top):
-                    break
-                seq += g.path(idx, first)
-                seq += [first] * RAMP_SETTLE
-                seq += [u - (k - j) * d for j in range(1, k + 1)]
-                seq += [u] * holds
-                idx = u
-        if seq:
-            out.append(seq)
-    return out
-
-
-def period_steps(scenario: Scenario, dt_s: float) -> tuple[int, int]:
-    """Return the fewest and most physics steps of a period: tau and tau + LATE_S.
-
-    Raises:
-        ClosedLoopConfigError: tau is not a whole number of physics steps.
-    """
-    ratio = scenario.tau_s / dt_s
-    if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:
-        raise ClosedLoopConfigError(
-            f"tau_s={scenario.tau_s!r} is not a whole number of physics steps dt_s={dt_s!r}"
-        )
-    return round(ratio), round(ratio) + math.floor(LATE_S / dt_s + 1e-9)
-
-
-def recipe_runs(scenario: Scenario, recipe: TransientRecipe, dt_s: float = 0.01) -> list[Run]:
-    """Return the runs of `recipe` on `scenario`'s input grid (deterministic in the seed).
-
-    Args:
-        scenario: Its input grid and period.
-        recipe: What to fly.
-        dt_s: The physics step the period lengths are whole numbers of (s).
-    """
-    g = _Grid(scenario)
-    rng = np.random.default_rng(recipe.seed)
-    lengths = np.random.default_rng([recipe.seed, 1])
-    lo_steps, hi_steps = period_steps(scenario, dt_s)
-    rest = g.value(g.zero)
-    zeros = np.zeros(3)
-    seeds = itertools.count(recipe.seed)
-    runs: list[Run] = []
-
-    def add(
-        kind: str, refs: FloatArray, previous: FloatArray, nu0: FloatArray, psi0: float
-    ) -> None:
-        steps: IntArray = np.asarray(
-            lengths.integers(lo_steps, hi_steps + 1, size=refs.shape[0]), dtype=np.int64
-        )
-        eta0 = np.array([0.0, 0.0, psi0])
-        runs.append(Run(kind, refs, steps, previous, nu0, eta0, next(seeds)))
-
-    for _ in range(recipe.tours):
-        add("tour", euler_tour(scenario, rng), rest, zeros, 0.0)
-    n_walk = max(1, round(recipe.walk_s / scenario.tau_s))
-    for _ in range(recipe.walks):
-        add("walk", np.array([g.value(i) for i in g.walk(g.zero, n_walk, rng)]), rest, zeros, 0.0)
-    if recipe.sweeps:
-        add("sweeps", np.array([g.value(i) for i in _sweeps(g)]), rest, zeros, 0.0)
-    for _ in range(recipe.ramps):
-        for seq in ramp_family(g, recipe.ramp_steps, recipe.ramp_holds, recipe.ramp_targets):
-            add("ramps", np.array([g.value(i) for i in seq]), rest, zeros, 0.0)
-    pairs = [(p, u) for p in g.inputs() for u in g.neighbours(p)]
-    n_pairs = round(recipe.start_share * len(pairs))
-
-    def some_pairs() -> list[tuple[IntArray, IntArray]]:
-        if n_pairs >= len(pairs):
-            return pairs
-        return [pairs[k] for k in sorted(rng.choice(len(pairs), n_pairs, replace=False))]
-
-    def heading() -> float:
-        return float(rng.uniform(-math.pi, math.pi))
-
-    for _ in range(recipe.starts):
-        for star, first in some_pairs():
-            p_star = g.value(star)
-            nu0 = np.clip(p_star + rng.uniform(-0.5, 0.5, 3) * g.step, g.lo, g.hi)
-            idx = [first, *g.walk(first, recipe.start_periods - 1, rng)]
-            add("start", np.array([g.value(i) for i in idx]), p_star, nu0, heading())
-        for first in g.neighbours(g.zero):
-            idx = [first, *g.walk(first, recipe.start_periods - 1, rng)]
-            add("rest", np.array([g.value(i) for i in idx]), rest, zeros, heading())
-    if recipe.start_corners:
-        for star, first in some_pairs():
-            p_star = g.value(star)
-            away = np.sign(first - star).astype(np.float64)
-            away[away == 0.0] = rng.choice((-1.0, 1.0), size=int(np.sum(away == 0.0)))
-            nu0 = np.clip(p_star - 0.5 * away * g.step, g.lo, g.hi)
-            refs = np.repeat(g.value(first)[None, :], recipe.start_periods, axis=0)
-            add("corner", refs, p_star, nu0, heading())
-    return runs
-
-
-def classify(run: Run) -> IntArray:
-    """Return the budget class of each period of `run`, shape (N,).
-
-    The first :data:`~hil.core.transient.START_PERIODS` periods are a start (2); after
-    them a period holds (0) when its reference equals the one before, else it changes (1).
-    """
-    prev = run.refs[:-1]
-    out = np.full(run.refs.shape[0], BudgetClass.START, dtype=np.int64)
-    same = np.all(run.refs[1:] == prev, axis=1)
-    out[1:] = np.where(same, BudgetClass.HOLD, BudgetClass.CHANGE)
-    out[:START_PERIODS] = BudgetClass.START
-    return out
-
-
-def hold_streaks(run: Run) -> IntArray:
-    """Return, per period of `run`, how many holds in a row end at it, shape (N,).
-
-    0 for a change or a start period; 1 for the first hold after a change (or after
-    the start), 2 for the second, and so on.
-    """
-    classes = classify(run)
-    out = np.zeros(classes.shape[0], dtype=np.int64)
-    for n in range(classes.shape[0]):
-        if classes[n] == BudgetClass.HOLD:
-            out[n] = (out[n - 1] if n else 0) + 1
     return out
 
 

@@ -15,7 +15,8 @@ from hil.bag import typestore as ts
 from hil.bag.errors import BagNotFoundError, FrameError, NotAHilRunError
 from hil.bag.messages import Record, encode
 from hil.bag.recorder import RecorderConfig
-from hil.bag.run_data import FIELDS, RepairKind, load_run
+from hil.bag.repairs import RepairKind
+from hil.bag.run_data import FIELDS, load_run
 from hil.bag.run_info import RunInfo
 from hil.commands.record_suite import write_bag
 from hil.core.records import Decision, Event, EventLevel, StateEstimate

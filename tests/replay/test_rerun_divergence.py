@@ -30,14 +30,12 @@ from hil.core.records import Decision
 from hil.core.samples import PoseSample
 from hil.replay.controllers import ScenarioCache
 from hil.replay.decisions import (
-    BOUNDARY,
     BOUNDARY_TOLERANCE,
-    TIE,
     decision_controllers,
-    explain_divergence,
     is_cost_tie,
     recompute,
 )
+from hil.replay.divergence import BOUNDARY, TIE, explain_divergence
 from hil.replay.regression import Status, summary_json
 from hil.replay.resim import MANIFEST, recorded_spec
 from hil.runs.sim_run import SimRunSpec, spec_to_json

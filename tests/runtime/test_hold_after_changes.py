@@ -5,7 +5,7 @@ The second audit (../shared/GUARANTEE.md, audit 2) drove the runtime (its EKF, t
 found the hold table exceeded, up to 1.177x, always on the same history: holding the
 corner (0.2, +-0.1, +-0.2) right after the change from (0.15, +-0.05, +-0.2), which the
 thrusters cannot settle in one period. The derivation now flies a systematic family of
-ramps into every input with holds after them (:func:`hil.sim.transient.ramp_family`). Here
+ramps into every input with holds after them (:func:`hil.sim.reference_paths.ramp_family`). Here
 that history, and the family's worst ramp into the corner (four steps along (1, 1, 0)),
 are flown by the real :class:`~hil.runtime.loop.Runtime` with its EKF, and every period is
 judged on the world's true state against the shipped budget of its class.

@@ -18,19 +18,21 @@ import hil.scenarios
 from hil.core.transient import BudgetClass, TransientBudget
 from hil.scenarios import Scenario, load_scenario, packaged_scenarios, parse_scenario
 from hil.sim.closed_loop import LowLevelConfig, simulate_closed_loop
+from hil.sim.reference_paths import euler_tour
 from hil.sim.transient import (
-    DIGITS,
-    Run,
     TransientDerivation,
-    TransientRecipe,
-    classify,
     derive_transient,
-    euler_tour,
-    hold_streaks,
     measure,
-    recipe_runs,
     round_up,
     toml_table,
+)
+from hil.sim.transient_runs import (
+    DIGITS,
+    Run,
+    TransientRecipe,
+    classify,
+    hold_streaks,
+    recipe_runs,
 )
 from tests.runtime.scripted import exact_arc
 

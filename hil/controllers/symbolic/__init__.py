@@ -39,7 +39,8 @@ from hil.controllers.symbolic.grid import Grid, obstacle_mask, target_mask
 from hil.controllers.symbolic.hull import free_masks, hull_half_extents, target_cells
 from hil.controllers.symbolic.problem import SymbolicProblem
 from hil.controllers.symbolic.selection import cost, select
-from hil.controllers.symbolic.synthesis import ControllerSources, Synthesizer, Watch, synthesize
+from hil.controllers.symbolic.sources import ControllerSources
+from hil.controllers.symbolic.synthesis import Synthesizer, Watch, synthesize
 
 __all__ = [
     "Answer",

@@ -25,10 +25,8 @@ from hil.controllers.symbolic.errors import GridError, NoWinningSetError
 from hil.controllers.symbolic.frontier_kernel import (
     advance_level_parallel,
     advance_level_serial,
-    erode_free,
     init_layers,
     start_levels,
-    viable_words,
 )
 from hil.controllers.symbolic.kernels import pack_rows
 from hil.controllers.symbolic.lattice import InputLattice
@@ -36,11 +34,12 @@ from hil.controllers.symbolic.levels import LevelSolver, Scratch
 from hil.controllers.symbolic.planes_kernel import from_sweep_layout, nested_classes
 from hil.controllers.symbolic.problem import SymbolicProblem
 from hil.controllers.symbolic.safety import solve_safe_set
-from hil.controllers.symbolic.store import ControllerStore, SolvedLayout, solve_key
+from hil.controllers.symbolic.sources import ControllerSources
+from hil.controllers.symbolic.store import ControllerStore, solve_key
+from hil.controllers.symbolic.stored import StoredControllers
+from hil.controllers.symbolic.viable import ViableWords
 from hil.core.arrays import BoolArray, U64Array
-from hil.core.jit import njit
 from hil.core.memory import require_bytes
-from hil.core.records import ControllerSource
 
 I32Array = NDArray[np.int32]
 
@@ -61,57 +60,6 @@ MEMO_SIZE = 2
 
 _MEMO: OrderedDict[str, Controller] = OrderedDict()
 _MEMO_LOCK = threading.Lock()
-
-
-@dataclass(slots=True)
-class ControllerSources:
-    """Where a synthesizer's controllers came from, counted per request.
-
-    Attributes:
-        solved: Solved here (the fixed point ran).
-        store: Read from the solved-controller store on disk.
-        memory: Reused from this process's memo.
-    """
-
-    solved: int = 0
-    store: int = 0
-    memory: int = 0
-
-    def total(self) -> int:
-        """Return the number of controllers handed out."""
-        return self.solved + self.store + self.memory
-
-    def minus(self, before: ControllerSources) -> ControllerSources:
-        """Return the counts since `before` (a copy taken earlier)."""
-        return ControllerSources(
-            self.solved - before.solved, self.store - before.store, self.memory - before.memory
-        )
-
-    def copy(self) -> ControllerSources:
-        """Return a snapshot of the counts."""
-        return replace(self)
-
-    def source_since(self, before: ControllerSources) -> ControllerSource:
-        """Return where the one controller handed out since `before` came from.
-
-        Meant for one request between two snapshots on the synthesizer's only caller
-        (the runtime's solver thread); a solve that yielded nothing counts as solved.
-        """
-        since = self.minus(before)
-        if since.memory:
-            return ControllerSource.MEMORY
-        if since.store:
-            return ControllerSource.STORE
-        return ControllerSource.SOLVED
-
-    def describe(self) -> str:
-        """Return the counts as text, e.g. ``2 solved, 1 from the store``."""
-        parts = [f"{self.solved} solved"]
-        if self.store:
-            parts.append(f"{self.store} from the store")
-        if self.memory:
-            parts.append(f"{self.memory} from memory")
-        return ", ".join(parts)
 
 
 @dataclass(frozen=True, slots=True)
@@ -139,70 +87,6 @@ class Watch:
 
 def _max_threads() -> int:
     return int(numba.config.NUMBA_NUM_THREADS)  # type: ignore[attr-defined]
-
-
-@njit
-def _all_viable(
-    free_words: U64Array,
-    columns: I32Array,
-    order: I32Array,
-    starts: I32Array,
-    tube_x0: I32Array,
-    tube_n: I32Array,
-    tube_y: I32Array,
-    px: int,
-    pw: int,
-    Fpad: U64Array,
-    Fe: U64Array,
-    out: U64Array,
-) -> None:
-    """Fill out (3, m, nx, npsi, nw): viable words of every (class, input, heading cell).
-
-    free_words (n_ranges, nx, nw) are the packed free masks; order[starts[h]:starts[h+1]]
-    lists the flat (c, k, u) whose hull range is h. Only the cells whose tube crosses a
-    column in columns[h] = [lo, hi] are written (lo > hi: none of range h; out holds the
-    rest already): a tube is free or not by the columns it crosses alone.
-    """
-    n_ranges, nx, nw = free_words.shape
-    m = out.shape[1]
-    npsi = out.shape[3]
-    for h in range(n_ranges):
-        if starts[h] == starts[h + 1] or columns[h, 0] > columns[h, 1]:
-            continue
-        for i in range(nx):
-            for w in range(nw):
-                Fpad[px + i, pw + w] = free_words[h, i, w]
-        erode_free(Fpad, Fe)
-        for e in range(starts[h], starts[h + 1]):
-            flat = order[e]
-            u = flat % m
-            ck = flat // m
-            k = ck % npsi
-            c = ck // npsi
-            # Tube columns i + x0 .. i + x0 + n - 1 meet [lo, hi].
-            x0 = tube_x0[c, k, u]
-            i_lo = columns[h, 0] - x0 - tube_n[c, k, u] + 1
-            i_hi = columns[h, 1] - x0
-            if i_hi >= 0:
-                viable_words(Fe, c, k, u, tube_x0, tube_n, tube_y, px, pw, out, i_lo, i_hi)
-
-
-def _changed_columns(before: U64Array | None, after: U64Array) -> I32Array:
-    """Return each hull range's changed x columns [lo, hi], shape (n_ranges, 2) (lo > hi: none).
-
-    before, after: packed free masks (n_ranges, nx, nw); no `before`: every column.
-    """
-    n_ranges, nx, _ = after.shape
-    out = np.empty((n_ranges, 2), dtype=np.int32)
-    out[:, 0] = 0
-    out[:, 1] = nx - 1
-    if before is None or before.shape != after.shape:
-        return out
-    changed = np.any(before != after, axis=2)  # (n_ranges, nx)
-    for h in range(n_ranges):
-        columns = np.flatnonzero(changed[h])
-        out[h] = (columns[0], columns[-1]) if columns.size else (nx, -1)
-    return out
 
 
 class Synthesizer:
@@ -244,11 +128,11 @@ class Synthesizer:
         self._threads = threads
         self._trace = trace_memory
         self._memo = memo and not trace_memory
-        self._store = ControllerStore.default(cache_dir) if use_cache else None
-        self._writes: list[threading.Thread] = []
+        self._stored = StoredControllers(
+            ControllerStore.default(cache_dir) if use_cache else None, tables, self._lattice,
+            N_PLANES,
+        )
         self._reuse_lock = threading.Lock()
-        self._last_viable: tuple[U64Array, U64Array] | None = None
-        """The last solve's packed free masks and viable words (a new layout starts there)."""
         self._spare: Scratch | None = None
         """The working arrays of the last finished planes solve (the next one reuses them)."""
         self.sources = ControllerSources()
@@ -275,12 +159,8 @@ class Synthesizer:
                 "successor boxes span more than 64 cells along y: the grid is too fine for "
                 "the deviation budget; use a coarser [grid] cell_m"
             )
-        self._f_layers = int((tables.tube_y[..., 1] - tables.tube_y[..., 0]).max()) + 1
-        ranges = tables.hull_range_index().ravel()  # flat (c, k, u) -> range
-        self._order = np.ascontiguousarray(np.argsort(ranges, kind="stable").astype(np.int32))
-        n_ranges = tables.hull_psi.shape[0] * tables.hull_psi.shape[1] * tables.hull_psi.shape[2]
-        counts = np.bincount(ranges, minlength=n_ranges)
-        self._starts = np.concatenate([[0], np.cumsum(counts)]).astype(np.int32)
+        self._viable = ViableWords(tables, self._pads)
+        """The viable words of a layout, from the last layout's (a new layout starts there)."""
         flat = tables.hull_psi.reshape(-1, 2)
         self._psi_lo = np.ascontiguousarray(flat[:, 0])
         self._psi_hi = np.ascontiguousarray(flat[:, 1])
@@ -302,7 +182,7 @@ class Synthesizer:
             + N_PLANES * rows_words  # values
             + 2 * rows_words // 8  # kill
             + 2 * nx * ny * npsi * 4  # the controller's values from rest, and a layer's
-            + (int(self._f_layers) + 1) * (nx + 2 * px) * (nw + 2 * pw) * 8
+            + (self._viable.f_layers + 1) * (nx + 2 * px) * (nw + 2 * pw) * 8
             # planes kernel: its W, viable, B, new A, new B, 2 scratch, values
             + m * npsi * (nw + 2 * pw) * (nx + 2 * px) * 8
             + (N_CLASSES - 1 + 5 + N_PLANES) * rows_words
@@ -353,9 +233,9 @@ class Synthesizer:
         at_rest = problem.heading_free()
         target = problem.target_cells(at_rest)
         obstacles = problem.inflated_obstacle_mask()
-        store = self._store if self._store is not None and self._store.enabled else None
+        stored = self._stored if self._stored.enabled else None
         key = ""
-        if self._memo or store is not None:
+        if self._memo or stored is not None:
             key = solve_key(self._tables.key, (free, target, obstacles))
         controller = None
         if self._memo:
@@ -364,8 +244,8 @@ class Synthesizer:
                 if controller is not None:
                     _MEMO.move_to_end(key)
                     self.sources.memory += 1
-        if controller is None and store is not None:
-            controller = self._load(store, key, target, obstacles, int(at_rest.sum()))
+        if controller is None and stored is not None:
+            controller = stored.load(key, self._pads, target, obstacles, int(at_rest.sum()))
             if controller is not None:
                 self.sources.store += 1
                 self._remember(key, controller)
@@ -380,8 +260,8 @@ class Synthesizer:
                     controller = stage
             assert controller is not None
             self._remember(key, controller)
-            if store is not None:
-                self._write(store, key, controller)
+            if stored is not None:
+                stored.write(key, controller)
         if require_winning and not controller.has_winning_start:
             s = controller.stats
             raise NoWinningSetError(
@@ -397,12 +277,11 @@ class Synthesizer:
         layout this synthesizer saw (:meth:`_viable`); a benchmark of "a new layout after
         this one" sets the previous layout here.
         """
-        self._viable(problem.free_masks(self._psi_lo, self._psi_hi))
+        self._viable.words(problem.free_masks(self._psi_lo, self._psi_hi))
 
     def wait_stored(self) -> None:
         """Block until every controller this synthesizer solved is written to the store."""
-        while self._writes:
-            self._writes.pop().join()
+        self._stored.wait()
 
     def _remember(self, key: str, controller: Controller) -> None:
         if self._memo:
@@ -410,111 +289,6 @@ class Synthesizer:
                 _MEMO[key] = controller
                 while len(_MEMO) > MEMO_SIZE:
                     _MEMO.popitem(last=False)
-
-    def _load(
-        self,
-        store: ControllerStore,
-        key: str,
-        target: BoolArray,
-        obstacles: BoolArray,
-        free_cells: int,
-    ) -> Controller | None:
-        """Return the controller stored under `key`, or None."""
-        nx, ny, npsi = self._tables.grid.shape
-        m = self._tables.n_inputs
-        start = time.perf_counter()
-        nw = (ny + 63) // 64
-        words = (m, npsi, nw, nx)
-        solved = store.load(
-            key, (words, (m, npsi, nw, N_PLANES, nx), (N_CLASSES, m, nx, npsi, nw), words)
-        )
-        if solved is None:
-            return None
-        W, safe = (self._padded(a) for a in (solved.winning, solved.safe))
-        return Controller(
-            self._tables, self._lattice, W, solved.planes, solved.viable, self._pads,
-            obstacles.astype(bool), SynthesisStats(
-                levels=solved.levels, seconds=solved.solve_seconds, winning_cells=0,
-                free_cells=free_cells, target_cells=int(target.sum()),
-                threads=solved.threads, loaded_seconds=time.perf_counter() - start,
-            ), safe,
-        )  # fmt: skip
-
-    def _padded(self, words: U64Array) -> U64Array:
-        """Return words (m, npsi, nw, nx) in the winning bits' padded layout."""
-        m, npsi, nw, nx = words.shape
-        px, _, pw = (int(p) for p in self._pads)
-        out = np.zeros((m, npsi, nw + 2 * pw, nx + 2 * px), dtype=np.uint64)
-        out[:, :, pw : pw + nw, px : px + nx] = words
-        return out
-
-    def _write(self, store: ControllerStore, key: str, controller: Controller) -> None:
-        """Write `controller` to the store from a thread: compressing takes about a second.
-
-        Not a daemon thread: a process that ends right after a solve still finishes
-        the file (an interrupted write leaves only a temporary file).
-        """
-        pads = controller.pads
-        px, _, pw = (int(p) for p in pads)
-        nx, ny, _ = self._tables.grid.shape
-        s = controller.stats
-        safe = controller.safe_words
-        if safe is None:
-            return  # only complete controllers (with their safety set) are stored
-        rows = (slice(None), slice(None), slice(pw, pw + (ny + 63) // 64), slice(px, px + nx))
-        solved = SolvedLayout(
-            controller.winning_words[rows], controller.value_planes, controller.viable_words,
-            safe[rows], s.levels, s.seconds, s.threads,
-        )  # fmt: skip
-        thread = threading.Thread(
-            target=store.save, args=(key, solved), name="hil-controller-store"
-        )
-        thread.start()
-        self._writes = [t for t in self._writes if t.is_alive()] + [thread]
-
-    def _viable(self, free: BoolArray) -> U64Array:
-        """Return the viable words (3, m, nx, npsi, nw) of the free masks (n_ranges, nx, ny).
-
-        From the previous call's words where the masks differ in a few columns (a moved
-        obstacle): only the cells whose tubes cross a changed column are computed again.
-        The array returned is new (or the previous one, unchanged, if nothing changed):
-        controllers keep it, so it is never written after it is returned.
-        """
-        t = self._tables
-        nx, ny, npsi = t.grid.shape
-        m = t.n_inputs
-        n_ranges = self._psi_lo.shape[0]
-        px, _, pw = (int(p) for p in self._pads)
-        nw = (ny + 63) // 64
-        free_words = pack_rows(np.ascontiguousarray(free.reshape(-1, ny))).reshape(n_ranges, nx, nw)
-        with self._reuse_lock:
-            previous = self._last_viable
-        columns = _changed_columns(None if previous is None else previous[0], free_words)
-        if previous is not None and previous[0].shape == free_words.shape:
-            if not np.any(columns[:, 0] <= columns[:, 1]):
-                return previous[1]
-            viable = previous[1].copy()
-        else:
-            viable = np.zeros((N_CLASSES, m, nx, npsi, nw), dtype=np.uint64)
-        f_pad = np.zeros((nx + 2 * px, nw + 2 * pw), dtype=np.uint64)
-        f_eroded = np.zeros((self._f_layers, nx + 2 * px, nw + 2 * pw), dtype=np.uint64)
-        _all_viable(
-            free_words,
-            columns,
-            self._order,
-            self._starts,
-            t.tube_x0,
-            t.tube_n,
-            t.tube_y,
-            px,
-            pw,
-            f_pad,
-            f_eroded,
-            viable,
-        )
-        with self._reuse_lock:
-            self._last_viable = (free_words, viable)
-        return viable
 
     def _solve_traced(
         self,
@@ -540,7 +314,7 @@ class Synthesizer:
         nw = (ny + 63) // 64
         goal_cells = np.ascontiguousarray(np.transpose(target, (0, 2, 1)).reshape(-1, ny))
         goal = pack_rows(goal_cells).reshape(nx, npsi, nw)
-        return self._viable(free), goal
+        return self._viable.words(free), goal
 
     def _level_solver(self, viable: U64Array, goal: U64Array, threads: int) -> LevelSolver:
         t = self._tables

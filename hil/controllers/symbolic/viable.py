@@ -1,0 +1,148 @@
+"""The viable words of a layout: which (class, input, cell) tubes the hull may fly.
+
+A state (cell, heading) with input u in force is viable for class c when the swept tube
+of u from it, under class c's deviation budget, stays on cells free for the hull over
+every heading it may take. The words are computed per hull heading range from the
+packed free masks (:func:`_all_viable`); a new layout starts from the last one's, and
+only the cells whose tubes cross a column the masks changed in are computed again (a
+moved obstacle touches a few columns).
+"""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hil.controllers.symbolic.abstraction import N_CLASSES, Tables
+from hil.controllers.symbolic.frontier_kernel import erode_free, viable_words
+from hil.controllers.symbolic.kernels import pack_rows
+from hil.core.arrays import BoolArray, U64Array
+from hil.core.jit import njit
+
+I32Array = NDArray[np.int32]
+
+__all__ = ["ViableWords"]
+
+
+class ViableWords:
+    """The viable words of each layout asked for, reusing the last layout's.
+
+    Args:
+        tables: The abstraction tables (tubes, hull heading ranges).
+        pads: The solver's padding (x, heading, word), shape (3,).
+    """
+
+    def __init__(self, tables: Tables, pads: I32Array) -> None:
+        self._tables = tables
+        self._pads = pads
+        self.f_layers = int((tables.tube_y[..., 1] - tables.tube_y[..., 0]).max()) + 1
+        """Eroded free-mask layers one computation holds (the tubes' largest y extent)."""
+        ranges = tables.hull_range_index().ravel()  # flat (c, k, u) -> range
+        self._order = np.ascontiguousarray(np.argsort(ranges, kind="stable").astype(np.int32))
+        n_ranges = tables.hull_psi.shape[0] * tables.hull_psi.shape[1] * tables.hull_psi.shape[2]
+        counts = np.bincount(ranges, minlength=n_ranges)
+        self._starts = np.concatenate([[0], np.cumsum(counts)]).astype(np.int32)
+        self._n_ranges = n_ranges
+        self._lock = threading.Lock()
+        self._last: tuple[U64Array, U64Array] | None = None
+
+    def words(self, free: BoolArray) -> U64Array:
+        """Return the viable words (3, m, nx, npsi, nw) of the free masks (n_ranges, nx, ny).
+
+        From the previous call's words where the masks differ in a few columns (a moved
+        obstacle): only the cells whose tubes cross a changed column are computed again.
+        The array returned is new (or the previous one, unchanged, if nothing changed):
+        controllers keep it, so it is never written after it is returned.
+        """
+        t = self._tables
+        nx, ny, npsi = t.grid.shape
+        m = t.n_inputs
+        px, _, pw = (int(p) for p in self._pads)
+        nw = (ny + 63) // 64
+        free_words = pack_rows(np.ascontiguousarray(free.reshape(-1, ny))).reshape(
+            self._n_ranges, nx, nw
+        )
+        with self._lock:
+            previous = self._last
+        columns = _changed_columns(None if previous is None else previous[0], free_words)
+        if previous is not None and previous[0].shape == free_words.shape:
+            if not np.any(columns[:, 0] <= columns[:, 1]):
+                return previous[1]
+            viable = previous[1].copy()
+        else:
+            viable = np.zeros((N_CLASSES, m, nx, npsi, nw), dtype=np.uint64)
+        f_pad = np.zeros((nx + 2 * px, nw + 2 * pw), dtype=np.uint64)
+        f_eroded = np.zeros((self.f_layers, nx + 2 * px, nw + 2 * pw), dtype=np.uint64)
+        _all_viable(
+            free_words, columns, self._order, self._starts, t.tube_x0, t.tube_n, t.tube_y,
+            px, pw, f_pad, f_eroded, viable,
+        )  # fmt: skip
+        with self._lock:
+            self._last = (free_words, viable)
+        return viable
+
+
+@njit
+def _all_viable(
+    free_words: U64Array,
+    columns: I32Array,
+    order: I32Array,
+    starts: I32Array,
+    tube_x0: I32Array,
+    tube_n: I32Array,
+    tube_y: I32Array,
+    px: int,
+    pw: int,
+    Fpad: U64Array,
+    Fe: U64Array,
+    out: U64Array,
+) -> None:
+    """Fill out (3, m, nx, npsi, nw): viable words of every (class, input, heading cell).
+
+    free_words (n_ranges, nx, nw) are the packed free masks; order[starts[h]:starts[h+1]]
+    lists the flat (c, k, u) whose hull range is h. Only the cells whose tube crosses a
+    column in columns[h] = [lo, hi] are written (lo > hi: none of range h; out holds the
+    rest already): a tube is free or not by the columns it crosses alone.
+    """
+    n_ranges, nx, nw = free_words.shape
+    m = out.shape[1]
+    npsi = out.shape[3]
+    for h in range(n_ranges):
+        if starts[h] == starts[h + 1] or columns[h, 0] > columns[h, 1]:
+            continue
+        for i in range(nx):
+            for w in range(nw):
+                Fpad[px + i, pw + w] = free_words[h, i, w]
+        erode_free(Fpad, Fe)
+        for e in range(starts[h], starts[h + 1]):
+            flat = order[e]
+            u = flat % m
+            ck = flat // m
+            k = ck % npsi
+            c = ck // npsi
+            # Tube columns i + x0 .. i + x0 + n - 1 meet [lo, hi].
+            x0 = tube_x0[c, k, u]
+            i_lo = columns[h, 0] - x0 - tube_n[c, k, u] + 1
+            i_hi = columns[h, 1] - x0
+            if i_hi >= 0:
+                viable_words(Fe, c, k, u, tube_x0, tube_n, tube_y, px, pw, out, i_lo, i_hi)
+
+
+def _changed_columns(before: U64Array | None, after: U64Array) -> I32Array:
+    """Return each hull range's changed x columns [lo, hi], shape (n_ranges, 2) (lo > hi: none).
+
+    before, after: packed free masks (n_ranges, nx, nw); no `before`: every column.
+    """
+    n_ranges, nx, _ = after.shape
+    out = np.empty((n_ranges, 2), dtype=np.int32)
+    out[:, 0] = 0
+    out[:, 1] = nx - 1
+    if before is None or before.shape != after.shape:
+        return out
+    changed = np.any(before != after, axis=2)  # (n_ranges, nx)
+    for h in range(n_ranges):
+        columns = np.flatnonzero(changed[h])
+        out[h] = (columns[0], columns[-1]) if columns.size else (nx, -1)
+    return out
