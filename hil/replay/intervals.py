@@ -33,16 +33,17 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
 from hil.bag.run_data import RunData
 from hil.controllers.symbolic import DecisionContract, SymbolicAdapter
-from hil.core.arrays import FloatArray
+from hil.core.arrays import FloatArray, IntArray
 from hil.core.clock import NS_PER_S
 from hil.core.records import Decision
-from hil.core.tracking import AXES, DISPLAY_UNITS, for_display
+from hil.core.tracking import AXES, DISPLAY_UNITS, TrackingSeries, for_display
 from hil.core.transient import BudgetClass, TransientBudget
 from hil.replay.context import ReplayContext
 from hil.replay.controllers import ControllerCache
@@ -175,6 +176,30 @@ def _interruption(run: RunData, start_ns: int, stop_ns: int) -> tuple[int, str] 
     return None
 
 
+@dataclass
+class _Judged:
+    """What judging one interval found (the fields of its :class:`Interval`)."""
+
+    notes: list[str] = field(default_factory=list)
+    tube: bool | None = None
+    tube_m: float | None = None
+    succ: bool | None = None
+    succ_m: float | None = None
+    heading_rad: float | None = None
+    descent: bool | None = None
+    exceeded: tuple[str, ...] = ()
+    excess: tuple[float, float, float] | None = None
+    late_s: float | None = None
+
+    @property
+    def broken(self) -> bool:
+        """Whether the interval broke its contract."""
+        return (
+            self.tube is False or self.succ is False or self.descent is False
+            or bool(self.exceeded) or self.late_s is not None
+        )
+
+
 def judge_intervals(
     run: RunData,
     controllers: ControllerCache,
@@ -192,7 +217,6 @@ def judge_intervals(
     decisions = run.decisions
     if not decisions:
         return ()
-    budget = scenario.transient
     series = run.tracking_error()
     failed = np.array(_failed_times(checks), dtype=np.int64)
     est_t = run.estimate.t_ns
@@ -202,119 +226,147 @@ def judge_intervals(
     for n, (d, adapter) in enumerate(decision_controllers(run, controllers)):
         last = n + 1 >= len(decisions)
         end = max(run.last_stamp_ns, d.t_ns) if last else decisions[n + 1].t_ns
-        notes: list[str] = []
-        contract = contract_of(adapter, d) if isinstance(adapter, SymbolicAdapter) else None
+        judged = _Judged()
         if isinstance(adapter, str):
-            notes.append(adapter)
-        succ = tube = descent = None
-        tube_m = succ_m = heading_rad = None
-        exceeded: tuple[str, ...] = ()
-        excess: tuple[float, float, float] | None = None
+            judged.notes.append(adapter)
         interrupted = _interruption(run, d.t_ns, end)
-        late_s = None
         if interrupted is not None:
-            notes.append(f"interrupted by {interrupted[1]} at {time_s(interrupted[0])}")
-        if contract is not None:
-            horizon_ns = round((contract.tau_s + contract.late_s) * NS_PER_S)
-            if not last and interrupted is None and end - d.t_ns > horizon_ns:
-                late_s = (end - d.t_ns - horizon_ns) / NS_PER_S
-                notes.append(
-                    f"input held {(end - d.t_ns) / NS_PER_S:.3f} s, past tau + late = "
-                    f"{horizon_ns / NS_PER_S:g} s by {late_s:.3f} s: a broken premise "
-                    "(the loop stalled); no budget covers this interval"
-                )
-            stop = min(end, d.t_ns + horizon_ns)
-            if interrupted is not None:
-                stop = min(stop, interrupted[0])
-            t, poses, nu = _estimates_in(run, d.t_ns, stop)
-            if len(t):
-                dist = contract.tube_distance_m(poses)
-                tube_m = float(dist.max())
-                tube = tube_m <= budget.estimation_position_m
-                if not tube:
-                    k = int(np.argmax(dist))
-                    notes.append(
-                        f"estimate {tube_m:.4f} m from the tube cells at {time_s(int(t[k]))} "
-                        f"(estimation bound {budget.estimation_position_m:.4f} m)"
-                    )
-                over = envelope_excess(
-                    budget, contract.budget_class, (t - d.t_ns) / NS_PER_S, nu - contract.nu_ref
-                )
-                over[t < startup_ns] = -np.inf
-                worst = for_display(np.maximum(over.max(axis=0), 0.0))
-                excess = (float(worst[0]), float(worst[1]), float(worst[2]))
-                exceeded = tuple(AXES[k] for k in np.flatnonzero((over > 0.0).any(axis=0)))
-                if exceeded:
-                    notes.append(
-                        "velocity error beyond the envelope + estimate tolerance on "
-                        + ", ".join(
-                            f"{AXES[k]} by {worst[k]:.4f} {DISPLAY_UNITS[k]}"
-                            for k in range(3)
-                            if AXES[k] in exceeded
-                        )
-                    )
-            tau_ns = round(contract.tau_s * NS_PER_S)
-            cut_short = (not last and end < d.t_ns + tau_ns - period // 2) or (
-                interrupted is not None
-            )
-            when = d.t_ns + horizon_ns if last else end
-            after = None if cut_short else _estimate_at(run, when, period // 2 + 1)
-            if after is not None:
-                pose = after[None, :]
-                succ = bool(contract.in_successor(pose)[0])
-                succ_m = float(contract.successor_distance_m(pose)[0])
-                heading_rad = float(contract.heading_distance_rad(pose)[0])
-                descent = bool(contract.value_decreases(pose)[0])
-                if not succ:
-                    notes.append(
-                        f"estimate at {time_s(when)} {succ_m:.4f} m and {heading_rad:.4f} rad "
-                        "outside the successor cells"
-                    )
-                if not descent:
-                    v = int(contract.end_values(pose)[0])
-                    first = contract.budget_class == BudgetClass.START
-                    notes.append(
-                        f"value {'losing' if v < 0 else v} at {time_s(when)} not below the "
-                        f"decision's {'win' if first else contract.value}"
-                    )
-        mask = (series.t_ns >= d.t_ns) & (series.t_ns < max(end, d.t_ns + 1))
-        err = series.error[mask]
-        rms = peak = None
-        if len(err):
-            rms_v = for_display(np.sqrt(np.mean(err**2, axis=0)))
-            peak_v = for_display(np.abs(err).max(axis=0))
-            rms = (float(rms_v[0]), float(rms_v[1]), float(rms_v[2]))
-            peak = (float(peak_v[0]), float(peak_v[1]), float(peak_v[2]))
+            judged.notes.append(f"interrupted by {interrupted[1]} at {time_s(interrupted[0])}")
+        if isinstance(adapter, SymbolicAdapter):
+            span = _Span(d.t_ns, end, last, interrupted, period, startup_ns)
+            _judge_contract(run, scenario.transient, contract_of(adapter, d), span, judged)
+        rms, peak = _tracking(series, d.t_ns, end)
         in_interval = bool(np.any((failed >= d.t_ns) & (failed < max(end, d.t_ns + 1))))
         if in_interval:
-            notes.insert(0, "a failed check names a time in this interval")
-        broken = (
-            tube is False or succ is False or descent is False or bool(exceeded)
-            or late_s is not None
+            judged.notes.insert(0, "a failed check names a time in this interval")
+        out.append(Interval(
+            t_ns=d.t_ns, end_ns=end, state=d.state, chosen_index=d.chosen_index,
+            chosen_input=d.chosen_input, successor_contained=judged.succ,
+            tube_contained=judged.tube, value_decreased=judged.descent,
+            tube_distance_m=judged.tube_m, successor_distance_m=judged.succ_m,
+            heading_distance_rad=judged.heading_rad, tracking_rms=rms, tracking_max=peak,
+            envelope_exceeded=judged.exceeded, envelope_excess=judged.excess,
+            status=Status.FAIL if in_interval or judged.broken else Status.PASS,
+            notes=tuple(judged.notes), late_s=judged.late_s,
+        ))  # fmt: skip
+    return tuple(out)
+
+
+@dataclass(frozen=True, slots=True)
+class _Span:
+    """One interval's times (ns): from its decision to the next, and what cut it."""
+
+    start_ns: int
+    end_ns: int
+    last: bool
+    interrupted: tuple[int, str] | None
+    period_ns: int
+    startup_ns: int
+
+
+def _judge_contract(
+    run: RunData, budget: TransientBudget, contract: DecisionContract | None, span: _Span,
+    judged: _Judged,
+) -> None:
+    """Judge one interval against its decision's contract: time, tube, envelope, successor."""
+    if contract is None:
+        return
+    notes = judged.notes
+    horizon_ns = round((contract.tau_s + contract.late_s) * NS_PER_S)
+    held_ns = span.end_ns - span.start_ns
+    if not span.last and span.interrupted is None and held_ns > horizon_ns:
+        judged.late_s = (held_ns - horizon_ns) / NS_PER_S
+        notes.append(
+            f"input held {held_ns / NS_PER_S:.3f} s, past tau + late = "
+            f"{horizon_ns / NS_PER_S:g} s by {judged.late_s:.3f} s: a broken premise "
+            "(the loop stalled); no budget covers this interval"
         )
-        out.append(
-            Interval(
-                t_ns=d.t_ns,
-                end_ns=end,
-                state=d.state,
-                chosen_index=d.chosen_index,
-                chosen_input=d.chosen_input,
-                successor_contained=succ,
-                tube_contained=tube,
-                value_decreased=descent,
-                tube_distance_m=tube_m,
-                successor_distance_m=succ_m,
-                heading_distance_rad=heading_rad,
-                tracking_rms=rms,
-                tracking_max=peak,
-                envelope_exceeded=exceeded,
-                envelope_excess=excess,
-                status=Status.FAIL if in_interval or broken else Status.PASS,
-                notes=tuple(notes),
-                late_s=late_s,
+    stop = min(span.end_ns, span.start_ns + horizon_ns)
+    if span.interrupted is not None:
+        stop = min(stop, span.interrupted[0])
+    t, poses, nu = _estimates_in(run, span.start_ns, stop)
+    if len(t):
+        _judge_tube(budget, contract, span, (t, poses, nu), judged)
+    tau_ns = round(contract.tau_s * NS_PER_S)
+    cut_short = (
+        not span.last and span.end_ns < span.start_ns + tau_ns - span.period_ns // 2
+    ) or span.interrupted is not None
+    when = span.start_ns + horizon_ns if span.last else span.end_ns
+    after = None if cut_short else _estimate_at(run, when, span.period_ns // 2 + 1)
+    if after is not None:
+        _judge_successor(contract, after[None, :], when, judged)
+
+
+def _judge_tube(
+    budget: TransientBudget,
+    contract: DecisionContract,
+    span: _Span,
+    estimates: tuple[IntArray, FloatArray, FloatArray],
+    judged: _Judged,
+) -> None:
+    """Judge the estimates (t (N,), poses (N, 3), nu (N, 3)) against the tube and envelope."""
+    t, poses, nu = estimates
+    dist = contract.tube_distance_m(poses)
+    judged.tube_m = float(dist.max())
+    judged.tube = judged.tube_m <= budget.estimation_position_m
+    if not judged.tube:
+        k = int(np.argmax(dist))
+        judged.notes.append(
+            f"estimate {judged.tube_m:.4f} m from the tube cells at {time_s(int(t[k]))} "
+            f"(estimation bound {budget.estimation_position_m:.4f} m)"
+        )
+    over = envelope_excess(
+        budget, contract.budget_class, (t - span.start_ns) / NS_PER_S, nu - contract.nu_ref
+    )
+    over[t < span.startup_ns] = -np.inf
+    worst = for_display(np.maximum(over.max(axis=0), 0.0))
+    judged.excess = (float(worst[0]), float(worst[1]), float(worst[2]))
+    judged.exceeded = tuple(AXES[k] for k in np.flatnonzero((over > 0.0).any(axis=0)))
+    if judged.exceeded:
+        judged.notes.append(
+            "velocity error beyond the envelope + estimate tolerance on "
+            + ", ".join(
+                f"{AXES[k]} by {worst[k]:.4f} {DISPLAY_UNITS[k]}"
+                for k in range(3)
+                if AXES[k] in judged.exceeded
             )
         )
-    return tuple(out)
+
+
+def _judge_successor(
+    contract: DecisionContract, pose: FloatArray, when: int, judged: _Judged
+) -> None:
+    """Judge the next decision's estimated pose (1, 3) at `when` (ns): successor, descent."""
+    judged.succ = bool(contract.in_successor(pose)[0])
+    judged.succ_m = float(contract.successor_distance_m(pose)[0])
+    judged.heading_rad = float(contract.heading_distance_rad(pose)[0])
+    judged.descent = bool(contract.value_decreases(pose)[0])
+    if not judged.succ:
+        judged.notes.append(
+            f"estimate at {time_s(when)} {judged.succ_m:.4f} m and {judged.heading_rad:.4f} "
+            "rad outside the successor cells"
+        )
+    if not judged.descent:
+        v = int(contract.end_values(pose)[0])
+        first = contract.budget_class == BudgetClass.START
+        judged.notes.append(
+            f"value {'losing' if v < 0 else v} at {time_s(when)} not below the "
+            f"decision's {'win' if first else contract.value}"
+        )
+
+
+def _tracking(
+    series: TrackingSeries, start_ns: int, end_ns: int
+) -> tuple[tuple[float, float, float] | None, tuple[float, float, float] | None]:
+    """Return the interval's tracking error RMS and largest per axis (display units)."""
+    err = series.error[(series.t_ns >= start_ns) & (series.t_ns < max(end_ns, start_ns + 1))]
+    if not len(err):
+        return None, None
+    rms = for_display(np.sqrt(np.mean(err**2, axis=0)))
+    peak = for_display(np.abs(err).max(axis=0))
+    return (float(rms[0]), float(rms[1]), float(rms[2])), (
+        float(peak[0]), float(peak[1]), float(peak[2])
+    )
 
 
 def check_contract(ctx: ReplayContext) -> Check:
