@@ -91,10 +91,7 @@ def check_resim(ctx: ReplayContext) -> Check:
         return Check("resim", Status.SKIP, str(err))
     log = MemoryLog()
     summary = run_in_sim(spec, log=log)
-    est_t = np.array([e[0] for e in log.estimates], dtype=np.int64)
-    est = np.array([np.concatenate([e[1], e[2]]) for e in log.estimates]).reshape(-1, 6)
-    ref_t = np.array([r[0] for r in log.velocity_references], dtype=np.int64)
-    ref = np.array([r[1] for r in log.velocity_references]).reshape(-1, 3)
+    est_s, ref_s = _series(log)
     decision_diffs, divergence = compare_rerun_decisions(run, log.decisions, controllers)
     # Without a divergence the whole re-simulation is compared, past the recording's end.
     est_end, out_end = compared_until(divergence, int(np.iinfo(np.int64).max))
@@ -103,41 +100,22 @@ def check_resim(ctx: ReplayContext) -> Check:
     # trajectory and the decisions are then compared for information only.
     drift = Status.FAIL if exact else Status.WARN
     graded: list[tuple[Status, Finding]] = []
-    rec_est = until(run.estimate, est_end)
-    t, i, j = np.intersect1d(rec_est.t_ns, est_t, return_indices=True)
-    deviation = np.hypot(*(est[j, :2] - rec_est.values[i, :2]).T) if t.size else np.zeros(0)
-    worst = float(deviation.max()) if deviation.size else math.nan
-    if deviation.size and worst > tolerance.resim_position_m:
-        k = int(np.flatnonzero(deviation > tolerance.resim_position_m)[0])
-        graded.append(
-            (
-                drift,
-                Finding(
-                    "trajectory departs from the recording by more than "
-                    f"{tolerance.resim_position_m} m (largest {worst:.3f} m)",
-                    int(t[k]),
-                    {"max_deviation_m": worst},
-                ),
-            )
-        )
+    worst, departed = _departure(until(run.estimate, est_end), est_s, tolerance.resim_position_m)
+    if departed is not None:
+        graded.append((drift, departed))
     recorded_docked = any(e.code == "docked" for e in run.events)
     if summary.docked != recorded_docked:
-        graded.append(
-            (
-                Status.FAIL,
-                Finding(
-                    f"recording {'docked' if recorded_docked else 'did not dock'}, re-simulation "
-                    f"{'docked' if summary.docked else 'did not'} ({summary.end_reason})"
-                ),
-            )
-        )
+        graded.append((Status.FAIL, Finding(
+            f"recording {'docked' if recorded_docked else 'did not dock'}, re-simulation "
+            f"{'docked' if summary.docked else 'did not'} ({summary.end_reason})"
+        )))  # fmt: skip
     graded += [(drift, f) for f in decision_diffs]
     graded += [
         (Status.FAIL if exact else Status.WARN, f)
         for f in tracking_findings(
             "resim",
             tracking_of(until(run.estimate, out_end), until(run.reference, out_end)),
-            tracking_of(until(Series(est_t, est), out_end), until(Series(ref_t, ref), out_end)),
+            tracking_of(until(est_s, out_end), until(ref_s, out_end)),
             tolerance.relative if exact else max(tolerance.relative, 0.25),
         )
     ]
@@ -173,3 +151,31 @@ def check_resim(ctx: ReplayContext) -> Check:
         metrics,
     )
 
+
+def _series(log: MemoryLog) -> tuple[Series, Series]:
+    """Return a simulated run's estimates (N, 6) and velocity references (M, 3) as series."""
+    est_t = np.array([e[0] for e in log.estimates], dtype=np.int64)
+    est = np.array([np.concatenate([e[1], e[2]]) for e in log.estimates]).reshape(-1, 6)
+    ref_t = np.array([r[0] for r in log.velocity_references], dtype=np.int64)
+    ref = np.array([r[1] for r in log.velocity_references]).reshape(-1, 3)
+    return Series(est_t, est), Series(ref_t, ref)
+
+
+def _departure(
+    recorded: Series, resim: Series, tolerance_m: float
+) -> tuple[float, Finding | None]:
+    """Return the largest position deviation (m) at common times, and a finding past it."""
+    t, i, j = np.intersect1d(recorded.t_ns, resim.t_ns, return_indices=True)
+    if not t.size:
+        return math.nan, None
+    deviation = np.hypot(*(resim.values[j, :2] - recorded.values[i, :2]).T)
+    worst = float(deviation.max())
+    if worst <= tolerance_m:
+        return worst, None
+    k = int(np.flatnonzero(deviation > tolerance_m)[0])
+    return worst, Finding(
+        f"trajectory departs from the recording by more than {tolerance_m} m "
+        f"(largest {worst:.3f} m)",
+        int(t[k]),
+        {"max_deviation_m": worst},
+    )
