@@ -228,12 +228,7 @@ def judge_run(
     out: dict[str, int] = dict.fromkeys(
         ("inflated_obstacle", "hull_contacts", "hull_outside_arena", "intervals", "tube_exits",
          "successor_misses", "value_not_decreasing", "late_intervals", "estimation_misses"), 0)
-    for a, b in pairwise([0, *rows, n]):
-        if b <= a:
-            continue
-        out["inflated_obstacle"] += bool((safety.inflated_depth[a:b] >= 0.0).any())
-        out["hull_contacts"] += bool((safety.penetration[a:b] > 0.0).any())
-        out["hull_outside_arena"] += bool((safety.outside[a:b] > 0.0).any())
+    _count_safety(safety, rows, out)
     worst: dict[str, float] = {
         "worst_inflated_depth_m": max(float(safety.inflated_depth.max()), 0.0),
         "worst_hull_penetration_m": float(safety.penetration.max()),
@@ -261,33 +256,69 @@ def judge_run(
             decision.staying,
         )
         out["intervals"] += 1
-        r_next = rows[index + 1] if index + 1 < len(rows) else n - 1
-        r_tau = r0 + round(contract.tau_s / dt)
-        if index + 1 < len(rows):
-            late_s = (r_next - r0) * dt - contract.tau_s
-            if late_s > contract.late_s + tick_s / 2:
-                out["late_intervals"] += 1
-                worst["worst_late_s"] = max(worst["worst_late_s"], late_s)
-            elif late_s > 0.0:
-                r_tau = r_next  # a late tick within the budget: judge the real end
-        span = eta[r0 : min(r_tau, r_next, n - 1) + 1]
-        exits = ~contract.in_tube(span)
-        if exits.any():
-            out["tube_exits"] += 1
-            worst["worst_tube_exit_m"] = max(
-                worst["worst_tube_exit_m"], float(contract.tube_distance_m(span[exits]).max()))
-        if r_tau > r_next or r_tau >= n:
-            continue  # the run or a new decision cut the interval short: no end to judge
-        end = eta[r_tau : r_tau + 1]
-        if not contract.in_successor(end)[0]:
-            out["successor_misses"] += 1
-            worst["worst_successor_miss_m"] = max(
-                worst["worst_successor_miss_m"], float(contract.successor_distance_m(end)[0]))
-            worst["worst_heading_miss_rad"] = max(
-                worst["worst_heading_miss_rad"], float(contract.heading_distance_rad(end)[0]))
-        if not contract.value_decreases(end)[0]:
-            out["value_not_decreasing"] += 1
+        r_next = rows[index + 1] if index + 1 < len(rows) else None
+        _judge_interval(contract, eta, (r0, r_next), (dt, tick_s), out, worst)
     return GuaranteeViolations(decisions=len(decisions), **out, **worst)  # type: ignore[arg-type]
+
+
+def _count_safety(safety: _Safety, rows: Sequence[int], out: dict[str, int]) -> None:
+    """Count the intervals (between decision rows) whose true hull broke a safety rule."""
+    n = len(safety.penetration)
+    for a, b in pairwise([0, *rows, n]):
+        if b <= a:
+            continue
+        out["inflated_obstacle"] += bool((safety.inflated_depth[a:b] >= 0.0).any())
+        out["hull_contacts"] += bool((safety.penetration[a:b] > 0.0).any())
+        out["hull_outside_arena"] += bool((safety.outside[a:b] > 0.0).any())
+
+
+def _judge_interval(
+    contract: DecisionContract,
+    eta: FloatArray,
+    rows: tuple[int, int | None],
+    times: tuple[float, float],
+    out: dict[str, int],
+    worst: dict[str, float],
+) -> None:
+    """Judge one interval on the true poses eta (N, 3): time, tube, successor, descent.
+
+    Args:
+        contract: The decision's contract.
+        eta: True poses.
+        rows: The decision's row and the next decision's (None: the last decision).
+        times: The true states' spacing dt and the loop period tick (s).
+        out: Counts, added to.
+        worst: Worst sizes, raised.
+    """
+    n = len(eta)
+    r0, nxt = rows
+    dt, tick_s = times
+    r_next = n - 1 if nxt is None else nxt
+    r_tau = r0 + round(contract.tau_s / dt)
+    if nxt is not None:
+        late_s = (r_next - r0) * dt - contract.tau_s
+        if late_s > contract.late_s + tick_s / 2:
+            out["late_intervals"] += 1
+            worst["worst_late_s"] = max(worst["worst_late_s"], late_s)
+        elif late_s > 0.0:
+            r_tau = r_next  # a late tick within the budget: judge the real end
+    span = eta[r0 : min(r_tau, r_next, n - 1) + 1]
+    exits = ~contract.in_tube(span)
+    if exits.any():
+        out["tube_exits"] += 1
+        worst["worst_tube_exit_m"] = max(
+            worst["worst_tube_exit_m"], float(contract.tube_distance_m(span[exits]).max()))
+    if r_tau > r_next or r_tau >= n:
+        return  # the run or a new decision cut the interval short: no end to judge
+    end = eta[r_tau : r_tau + 1]
+    if not contract.in_successor(end)[0]:
+        out["successor_misses"] += 1
+        worst["worst_successor_miss_m"] = max(
+            worst["worst_successor_miss_m"], float(contract.successor_distance_m(end)[0]))
+        worst["worst_heading_miss_rad"] = max(
+            worst["worst_heading_miss_rad"], float(contract.heading_distance_rad(end)[0]))
+    if not contract.value_decreases(end)[0]:
+        out["value_not_decreasing"] += 1
 
 
 def judge_outcome(spec: SimRunSpec, outcome: SimOutcome,
