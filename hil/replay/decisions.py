@@ -172,49 +172,53 @@ def consistency(d: Decision, inputs: FloatArray | None) -> list[tuple[str, str]]
     # Outside the winning set, a decision lists inputs only when it waits on the safety
     # controller, and then it flies one of them.
     if (d.value == 0.0 or (math.isinf(d.value) and d.chosen_index < 0)) and indices:
-        out.append(
-            (
-                "safe_input_indices",
-                f"safe_input_indices: {len(indices)} safe input(s) recorded at value {d.value}, "
-                "where the controller has none",
+        out.append((
+            "safe_input_indices",
+            f"safe_input_indices: {len(indices)} safe input(s) recorded at value {d.value}, "
+            "where the controller has none",
+        ))  # fmt: skip
+    seen = _safe_rows(d, inputs, out)
+    if d.chosen_index == -1:
+        if any(d.chosen_input):
+            out.append(("chosen_input", f"chosen_input: recorded {_row(d.chosen_input)} with "
+                        "no chosen_index (-1)"))  # fmt: skip
+        if indices:
+            out.append(
+                ("chosen_index", f"chosen_index: -1 (none) although {len(indices)} safe inputs")
             )
-        )
+        return out
+    _chosen_row(d, inputs, seen, out)
+    return out
+
+
+def _safe_rows(d: Decision, inputs: FloatArray | None, out: list[tuple[str, str]]) -> set[int]:
+    """Check each listed safe input against its index; return the indices listed."""
     seen: set[int] = set()
-    for k, (index, row) in enumerate(zip(indices, d.safe_inputs, strict=True)):
+    for k, (index, row) in enumerate(zip(d.safe_input_indices, d.safe_inputs, strict=True)):
         if index in seen:
             out.append(("safe_input_indices", f"safe_input_indices[{k}]: {index} listed twice"))
         seen.add(index)
         if inputs is None:
             continue
         if not 0 <= index < len(inputs):
-            out.append(
-                (
-                    "safe_input_indices",
-                    f"safe_input_indices[{k}]: {index} outside the input grid of {len(inputs)}",
-                )
-            )
+            out.append((
+                "safe_input_indices",
+                f"safe_input_indices[{k}]: {index} outside the input grid of {len(inputs)}",
+            ))  # fmt: skip
         elif not _same_row(row, inputs[index]):
-            out.append(
-                (
-                    "safe_inputs",
-                    f"safe_inputs[{k}]: recorded {_row(row)} but input-grid row {index} is "
-                    f"{_row(inputs[index])}",
-                )
-            )
+            out.append((
+                "safe_inputs",
+                f"safe_inputs[{k}]: recorded {_row(row)} but input-grid row {index} is "
+                f"{_row(inputs[index])}",
+            ))  # fmt: skip
+    return seen
+
+
+def _chosen_row(
+    d: Decision, inputs: FloatArray | None, seen: set[int], out: list[tuple[str, str]]
+) -> None:
+    """Check the chosen index among the safe ones and the chosen input its row."""
     chosen = d.chosen_index
-    if chosen == -1:
-        if any(d.chosen_input):
-            out.append(
-                (
-                    "chosen_input",
-                    f"chosen_input: recorded {_row(d.chosen_input)} with no chosen_index (-1)",
-                )
-            )
-        if indices:
-            out.append(
-                ("chosen_index", f"chosen_index: -1 (none) although {len(indices)} safe inputs")
-            )
-        return out
     if chosen not in seen:
         out.append(("chosen_index", f"chosen_index: {chosen} is not among the safe_input_indices"))
     if inputs is not None:
@@ -223,24 +227,19 @@ def consistency(d: Decision, inputs: FloatArray | None) -> list[tuple[str, str]]
                 ("chosen_index", f"chosen_index: {chosen} outside the input grid of {len(inputs)}")
             )
         elif not _same_row(d.chosen_input, inputs[chosen]):
-            out.append(
-                (
-                    "chosen_input",
-                    f"chosen_input: recorded {_row(d.chosen_input)} but chosen_index {chosen} "
-                    f"is input-grid row {_row(inputs[chosen])}",
-                )
-            )
+            out.append((
+                "chosen_input",
+                f"chosen_input: recorded {_row(d.chosen_input)} but chosen_index {chosen} "
+                f"is input-grid row {_row(inputs[chosen])}",
+            ))  # fmt: skip
     elif chosen in seen:
-        row = d.safe_inputs[indices.index(chosen)]
+        row = d.safe_inputs[d.safe_input_indices.index(chosen)]
         if not _same_row(d.chosen_input, row):
-            out.append(
-                (
-                    "chosen_input",
-                    f"chosen_input: recorded {_row(d.chosen_input)} but the safe input of "
-                    f"chosen_index {chosen} is {_row(row)}",
-                )
-            )
-    return out
+            out.append((
+                "chosen_input",
+                f"chosen_input: recorded {_row(d.chosen_input)} but the safe input of "
+                f"chosen_index {chosen} is {_row(row)}",
+            ))  # fmt: skip
 
 
 def across_boundaries(
