@@ -23,6 +23,7 @@ import contextlib
 import json
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -305,27 +306,7 @@ def check_stack(ctx: ReplayContext) -> Check:
         compared = sum(d.t_ns < divergence.t_ns for d in log.decisions)
     accepted = () if divergence is None else (Finding(divergence.describe(), divergence.t_ns),)
     if findings:
-        # Over ROS, which samples a tick saw depends on DDS arrival times, which the log
-        # does not hold: the re-run cannot be exact, so it is not judged there (SKIP, the
-        # differences kept as figures); nothing a user could act on, so no warning.
-        over_ros = run.info.run is not None and run.info.run.backend == "ros"
-        if over_ros:
-            return Check(
-                "stack",
-                Status.SKIP,
-                "not judged for a ROS run (sample arrival per tick is not recorded); the "
-                f"re-run departs from the recording at {time_s(findings[0].t_ns)}, figures below",
-                tuple(findings),
-                metrics,
-            )
-        return Check(
-            "stack",
-            Status.FAIL,
-            f"the re-run stack does not reproduce the recording, first at "
-            f"{time_s(findings[0].t_ns)}{note}",
-            tuple(findings),
-            metrics,
-        )
+        return _departed(run, tuple(findings), metrics, note)
     interrupted = "" if stop is None else f"; interrupted at {time_s(stop.t_ns)} ({stop.text})"
     return Check(
         "stack",
@@ -333,6 +314,32 @@ def check_stack(ctx: ReplayContext) -> Check:
         f"{len(est_t)} ticks, {compared} decisions and {len(cmd_t)} commands "
         f"reproduced{note}{interrupted}",
         accepted,
+        metrics,
+    )
+
+
+def _departed(
+    run: RunData, findings: tuple[Finding, ...], metrics: dict[str, Any], note: str
+) -> Check:
+    """Return the stack check of a re-run that departs from the recording (`findings`)."""
+    # Over ROS, which samples a tick saw depends on DDS arrival times, which the log
+    # does not hold: the re-run cannot be exact, so it is not judged there (SKIP, the
+    # differences kept as figures); nothing a user could act on, so no warning.
+    if run.info.run is not None and run.info.run.backend == "ros":
+        return Check(
+            "stack",
+            Status.SKIP,
+            "not judged for a ROS run (sample arrival per tick is not recorded); the "
+            f"re-run departs from the recording at {time_s(findings[0].t_ns)}, figures below",
+            findings,
+            metrics,
+        )
+    return Check(
+        "stack",
+        Status.FAIL,
+        f"the re-run stack does not reproduce the recording, first at "
+        f"{time_s(findings[0].t_ns)}{note}",
+        findings,
         metrics,
     )
 
