@@ -275,7 +275,7 @@ def judge_position(finding: PositionFinding, scenario: str) -> list[CheckLine]:
     where = f"({x:+.2f} m, {y:+.2f} m, {np.degrees(yaw):+.0f} deg)"
     winning = bool(np.isfinite(finding.value))
     return [
-        CheckLine("arena", "pose", where, f"inside scenario {scenario!r}'s arena",
+        CheckLine("arena", "pose", where, f"inside the arena of scenario {scenario!r}",
                   finding.inside, "move the vessel into the arena, or check [ros.transform]"),
         CheckLine("arena", "cell", str(finding.cell) if finding.cell >= 0 else "outside the grid",
                   "a cell of the grid", finding.cell >= 0, "check [ros.transform]"),

@@ -32,6 +32,7 @@ class FeedFaults:
         delay_s: How long before publication each sample is stamped (s): 0.01 is a
             capture stamp 10 ms old; 0 stamps on receipt.
         nan: Publish NaN positions (the rigid body occluded).
+        nan_every: With `nan` false, make every n-th pose NaN (0: none).
         pose: Arena pose (x m, y m, yaw rad) to report.
     """
 
@@ -40,6 +41,7 @@ class FeedFaults:
     rate_hz: float = 100.0
     delay_s: float = 0.01
     nan: bool = False
+    nan_every: int = 0
     pose: tuple[float, float, float] = (0.0, -1.0, math.pi)
 
 
@@ -71,7 +73,10 @@ class FeedPublisher:
         f = self.faults
         period_s = 1.0 / f.rate_hz
         next_s = time.monotonic()
+        sent = 0
         while not self._stop.is_set():
+            sent += 1
+            occluded = f.nan or (f.nan_every > 0 and sent % f.nan_every == 0)
             stamp_ns = time.time_ns() - round(f.delay_s * NS_PER_S)
             sec, nanosec = divmod(stamp_ns, NS_PER_S)
             pose = pose_type()
@@ -79,7 +84,7 @@ class FeedPublisher:
             pose.header.frame_id = f.frame_id
             x, y, yaw = f.pose
             # The identity transform: arena x, y are the lab's north, east.
-            pose.pose.pose.position.x = math.nan if f.nan else x
+            pose.pose.pose.position.x = math.nan if occluded else x
             pose.pose.pose.position.y = y
             pose.pose.pose.orientation.z = math.sin(yaw / 2)
             pose.pose.pose.orientation.w = math.cos(yaw / 2)
@@ -115,7 +120,8 @@ def main() -> None:
     parser.add_argument("--delay", type=float, default=0.01)
     parser.add_argument("--nan", action="store_true")
     args = parser.parse_args()
-    faults = FeedFaults(args.best_effort, args.frame_id, args.rate, args.delay, args.nan)
+    faults = FeedFaults(best_effort=args.best_effort, frame_id=args.frame_id,
+                        rate_hz=args.rate, delay_s=args.delay, nan=args.nan)
     with FeedPublisher(args.domain_id, faults):
         try:
             while True:

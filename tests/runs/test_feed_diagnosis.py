@@ -9,12 +9,16 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
 
+from hil.adapters.ros import RosConfig, RosWorld
 from hil.bag.reader import BagReader
 from hil.core.records import Event
+from hil.runs.feed_watch import FeedWatch
+from hil.runtime.trace import MemoryLog
 from tests.runs.dds_processes import LineTimes, dds_env, own_domain, stop
 
 pytest.importorskip("rclpy")
@@ -74,3 +78,32 @@ def test_vessel_names_the_cause_and_the_fix(tmp_path: Path, offset: int, faults:
     assert refused, [e.text for e in events]
     assert cause in refused[0].text
     assert fix in refused[0].text
+
+
+def test_status_and_events_count_refusals_while_poses_flow() -> None:
+    # One pose in four occluded: the run goes on, and says what it refuses and why.
+    domain = own_domain(20, 40, 3)
+    log = MemoryLog()
+    said: list[str] = []
+    with FeedPublisher(domain, FeedFaults(nan_every=4)), \
+            RosWorld(RosConfig(domain_id=domain, node_name=f"stack_{domain}")) as ros:
+        watch = FeedWatch(ros, log, said.append, period_s=0.0)
+        deadline = time.monotonic() + 15.0
+        while time.monotonic() < deadline and ros.pose_health().rejected < 10:
+            time.sleep(0.1)
+        watch.poll()
+        first = ros.pose_health()
+        time.sleep(0.3)
+        watch.poll()
+        status = watch.status()
+        assert ros.pose_source.poll(), "the finite poses are taken"
+    assert first.accepted >= 2 * first.rejected
+    assert len(said) == 1  # a new reason is said once...
+    assert said[0].startswith("poses on /voyager/measurement/pose refused: ")
+    assert len(log.events) == 2  # ...and logged each time its count grew
+    assert {code for _, _, code, _ in log.events} == {"sample_rejected"}
+    assert status.startswith("; refused pose ")
+    assert "NaN or infinite poses" in status
+    assert "check the mocap sees and tracks the vessel's rigid body" in status
+    assert watch.summary()[0].startswith("/voyager/measurement/pose: ")
+    assert "rejected: " in watch.summary()[0]
