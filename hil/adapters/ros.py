@@ -20,18 +20,55 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
-from hil.adapters.frames import ArenaTransform, quaternion_from_yaw, yaw_from_quaternion
-from hil.core.azimuth import azimuth_command, azimuth_vector
-from hil.core.clock import NS_PER_S
-from hil.core.samples import (
-    Frame,
-    ImuSample,
-    ObstacleLayout,
-    PoseSample,
-    SampleError,
-    ThrusterCommand,
+from hil.adapters.feed_health import (
+    FeedHealth,
+    FeedMonitor,
+    Refusal,
+    RejectReason,
+    frame_refusal,
+    imu_value_refusal,
+    pose_value_refusal,
+    qos_refusal,
+    time_refusal,
 )
+from hil.adapters.frames import ArenaTransform
+from hil.adapters.ros_messages import (
+    fill_imu_msg,
+    fill_pose_msg,
+    fill_stamp,
+    imu_from_msg,
+    pose_from_msg,
+    stamp_to_ns,
+    thruster_command_from_components,
+    thruster_wrench_components,
+)
+from hil.core.clock import NS_PER_S
+from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, SampleError, ThrusterCommand
 
+# The message conversions live in ros_messages.py; they are part of this backend's API.
+__all__ = [
+    "MAX_DOMAIN_ID",
+    "RosBackendError",
+    "RosClock",
+    "RosConfig",
+    "RosImuSource",
+    "RosObstacleSource",
+    "RosPoseSource",
+    "RosThrusterSink",
+    "RosTopics",
+    "RosWorld",
+    "check_domain_id",
+    "fill_imu_msg",
+    "fill_obstacle_msg",
+    "fill_pose_msg",
+    "fill_stamp",
+    "imu_from_msg",
+    "init_context",
+    "pose_from_msg",
+    "stamp_to_ns",
+    "thruster_command_from_components",
+    "thruster_wrench_components",
+]
 
 class RosBackendError(RuntimeError):
     """The ROS 2 backend cannot start or lost its link."""
@@ -118,121 +155,27 @@ def check_domain_id(value: object, what: str) -> int:
     return domain
 
 
-def stamp_to_ns(stamp: Any) -> int:
-    """Return a builtin_interfaces/Time as integer nanoseconds."""
-    return int(stamp.sec) * NS_PER_S + int(stamp.nanosec)
-
-
-def fill_stamp(stamp: Any, t_ns: int) -> None:
-    """Write `t_ns` into a builtin_interfaces/Time in place."""
-    stamp.sec, stamp.nanosec = divmod(int(t_ns), NS_PER_S)
-
-
-def pose_from_msg(msg: Any, transform: ArenaTransform) -> PoseSample:
-    """Convert a PoseWithCovarianceStamped in the lab's NED world to an arena pose.
-
-    Raises:
-        SampleError: On non-finite values or a non-unit orientation.
-    """
-    pose = msg.pose.pose
-    q = pose.orientation
-    yaw = yaw_from_quaternion(float(q.x), float(q.y), float(q.z), float(q.w))
-    lab = PoseSample(
-        stamp_to_ns(msg.header.stamp),
-        float(pose.position.x),
-        float(pose.position.y),
-        yaw,
-        Frame.LAB_NED,
-    )
-    return transform.to_arena(lab)
-
-
-def fill_pose_msg(
-    msg: Any, pose: PoseSample, transform: ArenaTransform, frame_id: str = "world_ned"
-) -> None:
-    """Fill a PoseWithCovarianceStamped with an arena pose, expressed in the lab frame."""
-    lab = transform.to_lab(pose)
-    fill_stamp(msg.header.stamp, lab.t_ns)
-    msg.header.frame_id = frame_id
-    msg.pose.pose.position.x = lab.x_m
-    msg.pose.pose.position.y = lab.y_m
-    msg.pose.pose.position.z = 0.0
-    o = msg.pose.pose.orientation
-    o.x, o.y, o.z, o.w = quaternion_from_yaw(lab.yaw_rad)
-
-
-def imu_from_msg(msg: Any) -> ImuSample:
-    """Convert a sensor_msgs/Imu to an IMU sample (planar specific force and yaw rate)."""
-    return ImuSample(
-        stamp_to_ns(msg.header.stamp),
-        float(msg.linear_acceleration.x),
-        float(msg.linear_acceleration.y),
-        float(msg.angular_velocity.z),
-    )
-
-
-def fill_imu_msg(msg: Any, imu: ImuSample, frame_id: str = "voyager/imu_link") -> None:
-    """Fill a sensor_msgs/Imu from an IMU sample; orientation marked as unknown."""
-    fill_stamp(msg.header.stamp, imu.t_ns)
-    msg.header.frame_id = frame_id
-    msg.linear_acceleration.x = imu.accel_x_mps2
-    msg.linear_acceleration.y = imu.accel_y_mps2
-    msg.angular_velocity.z = imu.yaw_rate_radps
-    # REP 145: covariance[0] = -1 says the orientation is not provided.
-    msg.orientation_covariance[0] = -1.0
-
-
-def thruster_wrench_components(command: ThrusterCommand) -> dict[str, tuple[float, float]]:
-    """Return the normalized (force.x, force.y) the lab's driver expects per thruster.
-
-    The tunnel uses force.x only; each azimuth takes its thrust as a vector in the
-    body frame, so the angle is carried by the direction of (force.x, force.y).
-    """
-    return {
-        "tunnel": (command.tunnel, 0.0),
-        "port": azimuth_vector(command.port, command.port_angle_rad),
-        "starboard": azimuth_vector(command.starboard, command.starboard_angle_rad),
-    }
-
-
-def thruster_command_from_components(
-    t_ns: int,
-    tunnel_x: float,
-    port: tuple[float, float],
-    starboard: tuple[float, float],
-    previous: ThrusterCommand | None = None,
-) -> ThrusterCommand:
-    """Rebuild a command from the lab's wrench components (inverse of the above).
-
-    The decode rule of :mod:`hil.core.azimuth`: each pod keeps the side of its angle in
-    `previous` (without one, of its reference angle) and reverses the propeller when
-    the vector points behind it; a zero vector keeps the angle.
-    """
-    fallback = previous or ThrusterCommand.zero(t_ns)
-    port_thrust, port_angle = azimuth_command(*port, fallback.port_angle_rad)
-    stbd_thrust, stbd_angle = azimuth_command(*starboard, fallback.starboard_angle_rad)
-    return ThrusterCommand(
-        t_ns, max(-1.0, min(1.0, tunnel_x)), port_thrust, stbd_thrust, port_angle, stbd_angle
-    )
-
-
 class _SubscriptionQueue:
-    """A thread-safe queue of samples from a subscription callback, with counters."""
+    """A thread-safe queue of samples from a subscription callback, with its feed's counters."""
 
-    def __init__(self, maxlen: int = 10_000) -> None:
+    def __init__(self, monitor: FeedMonitor, maxlen: int = 10_000) -> None:
         self._items: deque[Any] = deque(maxlen=maxlen)
         self._lock = threading.Lock()
-        self.rejected = 0
+        self.monitor = monitor
+        self.last_ns: int | None = None
+        """Stamp of the newest sample accepted (ns), for the out-of-order check."""
         self.arrived = threading.Event()
+
+    @property
+    def rejected(self) -> int:
+        return self.monitor.snapshot().rejected
 
     def put(self, item: Any) -> None:
         with self._lock:
             self._items.append(item)
+            self.last_ns = item.t_ns
+        self.monitor.accepted()
         self.arrived.set()
-
-    def reject(self) -> None:
-        with self._lock:
-            self.rejected += 1
 
     def drain(self) -> list[Any]:
         with self._lock:
@@ -249,7 +192,7 @@ class RosPoseSource:
 
     @property
     def rejected(self) -> int:
-        """Number of pose messages refused (non-finite, bad quaternion, wrong frame)."""
+        """Number of pose messages refused (by reason: :meth:`RosWorld.pose_health`)."""
         return self._inbox.rejected
 
     def poll(self) -> list[PoseSample]:
@@ -269,7 +212,7 @@ class RosImuSource:
 
     @property
     def rejected(self) -> int:
-        """Number of IMU messages refused (non-finite values)."""
+        """Number of IMU messages refused (by reason: :meth:`RosWorld.imu_health`)."""
         return self._inbox.rejected
 
     def poll(self) -> list[ImuSample]:
@@ -434,17 +377,21 @@ class RosWorld:
         obstacles: The scenario's layout, tracked when the config names an obstacle topic.
         min_move_m: Smallest move of a tracked centre that changes the layout (m); the
             scenario's ``position_tolerance_m``, by which moving obstacles are grown.
+        stale_after_s: A pose or IMU sample stamped this long before the node's clock is
+            refused as stale (s): a publisher on another clock, or a feed that lags.
     """
 
     def __init__(self, config: RosConfig | None = None,
-                 obstacles: ObstacleLayout | None = None, min_move_m: float = 0.01) -> None:
+                 obstacles: ObstacleLayout | None = None, min_move_m: float = 0.01,
+                 stale_after_s: float = 1.0) -> None:
         self.config = config or RosConfig()
+        self._stale_after_ns = round(stale_after_s * NS_PER_S)
         # Tracked obstacles when a topic is configured and the layout to start from given.
         self.obstacle_source: RosObstacleSource | None = None
         if self.config.topics.obstacles and obstacles is not None:
             self.obstacle_source = RosObstacleSource(obstacles, self.config.transform, min_move_m)
-        self._pose_inbox = _SubscriptionQueue()
-        self._imu_inbox = _SubscriptionQueue()
+        self._pose_inbox = _SubscriptionQueue(FeedMonitor(self.config.topics.pose, "poses"))
+        self._imu_inbox = _SubscriptionQueue(FeedMonitor(self.config.topics.imu, "IMU samples"))
         self._context: Any = None
         self._node: Any = None
         self._executor: Any = None
@@ -465,6 +412,7 @@ class RosWorld:
         try:
             import rclpy
             from geometry_msgs.msg import PoseWithCovarianceStamped, Wrench
+            from rclpy.event_handler import SubscriptionEventCallbacks
             from rclpy.executors import SingleThreadedExecutor
             from rclpy.parameter import Parameter
             from rclpy.qos import QoSProfile, ReliabilityPolicy
@@ -490,10 +438,14 @@ class RosWorld:
                 else ReliabilityPolicy.RELIABLE
             ),
         )
-        self._node.create_subscription(
-            PoseWithCovarianceStamped, cfg.topics.pose, self._on_pose, sensor_qos
-        )
-        self._node.create_subscription(Imu, cfg.topics.imu, self._on_imu, sensor_qos)
+        for msg_type, topic, callback, inbox in (
+                (PoseWithCovarianceStamped, cfg.topics.pose, self._on_pose, self._pose_inbox),
+                (Imu, cfg.topics.imu, self._on_imu, self._imu_inbox)):
+            # The event replaces rclpy's one-off warning: the refusal is counted and named.
+            events = SubscriptionEventCallbacks(
+                incompatible_qos=lambda info, box=inbox: self._on_incompatible_qos(box, info))
+            self._node.create_subscription(msg_type, topic, callback, sensor_qos,
+                                           event_callbacks=events)
         if self.obstacle_source is not None:
             from geometry_msgs.msg import PoseArray
 
@@ -517,20 +469,55 @@ class RosWorld:
         with contextlib.suppress(ExternalShutdownException):
             self._executor.spin()
 
-    def _on_pose(self, msg: Any) -> None:
-        if msg.header.frame_id and msg.header.frame_id != self.config.pose_frame_id:
-            self._pose_inbox.reject()
-            return
+    def pose_health(self) -> FeedHealth:
+        """Return what the pose topic delivered and refused so far, by reason."""
+        return self._pose_inbox.monitor.snapshot()
+
+    def imu_health(self) -> FeedHealth:
+        """Return what the IMU topic delivered and refused so far, by reason."""
+        return self._imu_inbox.monitor.snapshot()
+
+    def publishers_on(self, topic: str) -> int:
+        """Return how many publishers discovery has seen on `topic` (0 before :meth:`open`)."""
+        return 0 if self._node is None else int(self._node.count_publishers(topic))
+
+    def _on_incompatible_qos(self, inbox: _SubscriptionQueue, info: Any) -> None:
+        from rclpy.qos import QoSPolicyKind
+
         try:
-            self._pose_inbox.put(pose_from_msg(msg, self.config.transform))
-        except SampleError:
-            self._pose_inbox.reject()
+            policy = QoSPolicyKind(info.last_policy_kind).name
+        except ValueError:
+            policy = str(info.last_policy_kind)
+        inbox.monitor.refused(qos_refusal(policy, self.config.best_effort_sensors),
+                              count=int(info.total_count))
+
+    def _time_refusal(self, inbox: _SubscriptionQueue, msg: Any) -> Refusal | None:
+        return time_refusal(stamp_to_ns(msg.header.stamp), inbox.last_ns,
+                            int(self._node.get_clock().now().nanoseconds),
+                            self._stale_after_ns, self.config.use_sim_time)
+
+    def _on_pose(self, msg: Any) -> None:
+        inbox = self._pose_inbox
+        inbox.monitor.received()
+        refusal = (frame_refusal(msg.header.frame_id, self.config.pose_frame_id)
+                   or pose_value_refusal(msg) or self._time_refusal(inbox, msg))
+        if refusal is None:
+            try:
+                inbox.put(pose_from_msg(msg, self.config.transform))
+                return
+            except SampleError as err:  # the transform's checks, beyond the message's
+                refusal = Refusal(RejectReason.NOT_FINITE, f"poses refused ({err})",
+                                  "check [ros.transform]")
+        inbox.monitor.refused(refusal)
 
     def _on_imu(self, msg: Any) -> None:
-        try:
-            self._imu_inbox.put(imu_from_msg(msg))
-        except SampleError:
-            self._imu_inbox.reject()
+        inbox = self._imu_inbox
+        inbox.monitor.received()
+        refusal = imu_value_refusal(msg) or self._time_refusal(inbox, msg)
+        if refusal is None:
+            inbox.put(imu_from_msg(msg))
+        else:
+            inbox.monitor.refused(refusal)
 
     def close(self) -> None:
         """Stop the executor, destroy the node and shut the context down."""

@@ -1,16 +1,28 @@
 """`hil vessel --config FILE`: the on-vessel entry point (ROS 2 backend, wall time).
 
 Runs the full stack against the lab's topics, records the run, and on SIGINT or
-SIGTERM sends zero thrust and closes the log before exiting.
+SIGTERM sends zero thrust and closes the log before exiting. With `--check` it only
+listens: a preflight of the feeds and the vessel's pose that moves nothing.
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from hil.commands.common import EXIT_ABORTED, EXIT_BAD_INPUT, EXIT_DOCKED, EXIT_NOT_DOCKED
+from hil.commands.common import (
+    EXIT_ABORTED,
+    EXIT_BAD_INPUT,
+    EXIT_DOCKED,
+    EXIT_NOT_DOCKED,
+    positive_seconds,
+)
+
+if TYPE_CHECKING:
+    from hil.runs.vessel_run import VesselConfig
 
 HELP = "run the stack on the vessel over ROS 2 (wall time), recorded; stops cleanly on SIGINT"
 
@@ -23,6 +35,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="bag directory to create (default: under the config's runs_dir)")
     parser.add_argument("--json", action="store_true",
                         help="end with the summary as one JSON object on the last line")
+    parser.add_argument("--check", action="store_true",
+                        help="preflight: listen to the configured topics (no thrust is "
+                        "commanded) and judge rate, jitter, latency, clock, frame id, NaN "
+                        "share, QoS and the vessel's pose in the arena against the "
+                        "guarantee's premises; exit 0 when all hold, 1 otherwise")
+    parser.add_argument("--seconds", type=positive_seconds, default=None, metavar="S",
+                        help="with --check: how long to listen (default 5 s)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -42,8 +61,13 @@ def run(args: argparse.Namespace) -> int:
     def progress(line: str) -> None:
         print(f"hil vessel: {line}", file=sys.stderr, flush=True)
 
+    if args.seconds is not None and not args.check:
+        print("hil vessel: error: --seconds needs --check", file=sys.stderr)
+        return EXIT_BAD_INPUT
     try:
         config = VesselConfig.load(args.config)
+        if args.check:
+            return _check(config, 5.0 if args.seconds is None else args.seconds, progress)
         summary = run_on_ros(config, args.out, progress=progress)
     except (ConfigError, ScenarioError, RosBackendError, ReplayError) as err:
         print(f"hil vessel: {err}", file=sys.stderr)
@@ -60,3 +84,16 @@ def run(args: argparse.Namespace) -> int:
     if summary.docked:
         return EXIT_DOCKED
     return EXIT_ABORTED if summary.aborted else EXIT_NOT_DOCKED
+
+
+def _check(config: VesselConfig, seconds: float, progress: Callable[[str], None]) -> int:
+    """Run the preflight, print one line per premise on stdout; 0 all hold, 1 otherwise."""
+    from hil.runs.vessel_check import check_vessel
+
+    report = check_vessel(config, seconds, progress)
+    for line in report.lines:
+        print(line.text(), flush=True)
+    failed = sum(not line.ok for line in report.lines)
+    progress(f"preflight {'passed' if report.ok else 'FAILED'}: {len(report.lines)} lines, "
+             f"{failed} failed, listened {report.listened_s:.1f} s on {report.time_source}")
+    return EXIT_DOCKED if report.ok else EXIT_NOT_DOCKED

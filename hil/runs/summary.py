@@ -106,6 +106,8 @@ class RunSummary:
             stalled loop: a broken premise, ``late_interval``); worst_late_s by how much (s).
         staying_decisions: Decisions taken on the safety controller (docking not
             winning, the vessel kept in the safety set); docking_lost the episodes.
+        feed_rejections: On the vessel: per sensor topic with refused messages, what it
+            delivered and refused by reason, with the fix (``FeedHealth.describe``).
     """
 
     scenario: str
@@ -144,6 +146,7 @@ class RunSummary:
     brake_s: float | None = None
     staying_decisions: int = 0
     docking_lost: int = 0
+    feed_rejections: tuple[str, ...] = ()
 
     def to_json(self) -> str:
         """Return the summary as one line of JSON (NaN and inf as null)."""
@@ -229,6 +232,9 @@ class RunSummary:
             "run time (simulated / wall)", f"{self.duration_s:.1f} s / {self.wall_s:.2f} s", "-"
         )
         console.print(table)
+        for line in self.feed_rejections:  # plain text: "[ros]" is no markup
+            console.print(f"refused by the ROS backend: {line}", markup=False, highlight=False,
+                          soft_wrap=True)
         if self.log is not None:
             console.print(f"log: {Path(self.log)}")
 
@@ -246,6 +252,7 @@ def summarize_run(
     log: str | None,
     nominal_s: float = 0.05,
     obstacle_offsets_m: FloatArray | None = None,
+    feed_rejections: tuple[str, ...] = (),
 ) -> RunSummary:
     """Summarize a finished run.
 
@@ -264,6 +271,7 @@ def summarize_run(
         obstacle_offsets_m: Each obstacle's displacement from its scenario position at
             each pose of `trajectory` (m), shape (n_obstacles, N, 2); None: the obstacles
             stay put.
+        feed_rejections: What the ROS backend refused, per topic (vessel runs).
     """
     clearance = hull_clearance_series(scenario, trajectory, obstacle_offsets_m)
     moving = 0 if obstacle_offsets_m is None else int(
@@ -309,6 +317,7 @@ def summarize_run(
         brake_s=stats.brake_s,
         staying_decisions=stats.staying_decisions,
         docking_lost=stats.docking_lost,
+        feed_rejections=feed_rejections,
     )
 
 

@@ -22,6 +22,7 @@ from hil.adapters.ros import RosConfig, RosWorld
 from hil.bag.recorder import Recorder
 from hil.bag.run_info import RunInfo
 from hil.core.config import from_table, load_toml
+from hil.runs.feed_watch import FeedWatch
 from hil.runs.stack_assembly import build_runtime, scenario_hash, synthesizer_for
 from hil.runs.summary import RunSummary, summarize_run
 from hil.runtime.assembly import layout_from_scenario, warm_up_kernels
@@ -70,8 +71,11 @@ def _quiet(_line: str) -> None:
     pass
 
 
-def status_line(runtime: Runtime) -> str:
-    """Return one line on the running loop: time, mode, estimate, decisions, controller."""
+def status_line(runtime: Runtime, feeds: FeedWatch | None = None) -> str:
+    """Return one line on the running loop: time, mode, estimate, decisions, controller.
+
+    With `feeds`, the ROS backend's refusals by reason and their fixes follow.
+    """
     stats = runtime.stats
     t_s = (runtime.world.clock.now_ns() - stats.start_ns) / 1e9
     where = "no estimate yet"
@@ -79,18 +83,24 @@ def status_line(runtime: Runtime) -> str:
         x, y, psi = (float(v) for v in np.asarray(stats.eta_hat[-1]).reshape(3))
         where = f"at ({x:+.2f} m, {y:+.2f} m, {np.degrees(psi):+.0f} deg)"
     return (f"t={t_s:6.1f} s  {runtime.mode.value:<9} {where}  decisions {stats.decisions}, "
-            f"controller v{runtime.controller_version}, pose losses {stats.pose_losses}")
+            f"controller v{runtime.controller_version}, pose losses {stats.pose_losses}"
+            f"{'' if feeds is None else feeds.status()}")
 
 
 @contextmanager
-def _status_every(period_s: float, runtime: Runtime, progress: Progress) -> Iterator[None]:
-    """Report :func:`status_line` every `period_s` of wall time while inside the block."""
+def _status_every(period_s: float, runtime: Runtime, feeds: FeedWatch,
+                  progress: Progress) -> Iterator[None]:
+    """Report :func:`status_line` every `period_s` of wall time while inside the block.
+
+    The feeds' refusals are logged as events each time; a new reason is said at once.
+    """
     done = threading.Event()
 
     def report() -> None:
         while not done.wait(period_s):
             if runtime.mode not in (Mode.DOCKED, Mode.STOPPED):
-                progress(status_line(runtime))
+                feeds.poll()
+                progress(status_line(runtime, feeds))
 
     thread = threading.Thread(target=report, name="hil-status", daemon=True)
     thread.start()
@@ -100,20 +110,24 @@ def _status_every(period_s: float, runtime: Runtime, progress: Progress) -> Iter
         done.set()
         thread.join(timeout=1.0)
 
+def _wait_for_pose(ros: RosWorld, topic: str, feeds: FeedWatch,
+                   progress: Progress) -> str | None:
+    """Block until the first pose arrives; return why it stopped waiting (a signal), or None.
 
-
-def _wait_for_pose(ros: RosWorld, topic: str, progress: Progress) -> str | None:
-    """Block until the first pose arrives; return why it stopped waiting (a signal), or None."""
+    Each new reason the feeds are refused for is said at once (with its fix); every
+    :data:`STATUS_PERIOD_S` a reminder says what the topic delivered.
+    """
     stopped: list[str] = []
     progress(f"waiting for pose on {topic} (ROS domain {ros.domain_id})...")
     waited_s = 0.0
     with stop_on_signals(stopped.append):
         while not stopped and not ros.pose_source.wait_first(0.1):
+            feeds.poll()
             waited_s += 0.1
             if waited_s >= STATUS_PERIOD_S:
                 waited_s = 0.0
                 progress(f"still waiting for pose on {topic} (ROS domain {ros.domain_id}): "
-                         f"is the motion capture publishing? (ros2 topic echo {topic})")
+                         f"{feeds.waiting(topic)}")
     return stopped[0] if stopped else None
 
 
@@ -139,12 +153,13 @@ def run_on_ros(config: VesselConfig, out_dir: Path | None = None,
     if out_dir is None:
         out_dir = Path(config.runs_dir) / f"{scenario.name}-vessel-{time.strftime('%Y%m%d-%H%M%S')}"
     layout = layout_from_scenario(scenario)
-    with RosWorld(config.ros, obstacles=layout,
-                  min_move_m=scenario.tracking.position_tolerance_m) as ros, Recorder(
+    with RosWorld(config.ros, obstacles=layout, min_move_m=scenario.tracking.position_tolerance_m,
+                  stale_after_s=max(1.0, config.loop.pose_timeout_s)) as ros, Recorder(
             out_dir, RunInfo.current(config.scenario, scenario_hash(scenario), None,
                                      backend="ros")) as recorder:
         assert ros.clock is not None
         assert ros.thruster_sink is not None
+        feeds = FeedWatch(ros, recorder, progress)
         obstacles: ObstacleSource = ros.obstacle_source or StaticObstacleSource(layout)
         world = World(ros.clock, ros.pose_source, ros.imu_source, obstacles, ros.thruster_sink)
         runtime = build_runtime(scenario, world, recorder, config.loop, synthesizer,
@@ -160,21 +175,22 @@ def run_on_ros(config: VesselConfig, out_dir: Path | None = None,
             runtime.resynthesizer.wait_idle()
         try:
             stopped = early[0] if early else _wait_for_pose(
-                ros, config.ros.topics.pose, progress
+                ros, config.ros.topics.pose, feeds, progress
             )
             if stopped is not None:
                 runtime.request_stop(f"{stopped} while waiting for pose")
             else:
                 progress(f"running: recording to {out_dir}")
             with stop_on_signals(runtime.request_stop), \
-                    _status_every(STATUS_PERIOD_S, runtime, progress):
+                    _status_every(STATUS_PERIOD_S, runtime, feeds, progress):
                 stats = runtime.run()
         finally:
             runtime.resynthesizer.close()
+        refused = feeds.summary()
     progress(f"stopped: {stats.end_reason}")
     eta = np.asarray(stats.eta_hat).reshape(-1, 3)
     return summarize_run(scenario=scenario, scenario_name=config.scenario, seed=None,
                          backend="ros", stats=stats, trajectory=eta,
                          velocity=np.asarray(stats.nu_hat).reshape(-1, 3),
                          wall_s=time.perf_counter() - wall_start, log=str(out_dir),
-                         nominal_s=1.0 / config.loop.loop_hz)
+                         nominal_s=1.0 / config.loop.loop_hz, feed_rejections=refused)

@@ -158,7 +158,9 @@ def test_dds_pose_in_lab_frame_lands_at_arena_state(
     peer_and_world: tuple[_Peer, RosWorld],
 ) -> None:
     peer, world = peer_and_world
-    expected = PoseSample(7_000_000_000, 1.5, 0.5, -0.7, Frame.ARENA)
+    assert world.clock is not None
+    # Stamped now: the backend refuses poses older than its clock by a second (stale).
+    expected = PoseSample(world.clock.now_ns(), 1.5, 0.5, -0.7, Frame.ARENA)
     msg = geometry_msgs.PoseWithCovarianceStamped()
     fill_pose_msg(msg, expected, TRANSFORM)
     bad = geometry_msgs.PoseWithCovarianceStamped()

@@ -98,6 +98,19 @@ def test_vessel_config_with_a_bad_domain(
     _fails_with(["vessel", "--config", str(config)], capsys, "domain_id", "500")
 
 
+def test_vessel_check_refuses_bad_seconds_and_a_bad_config(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config = tmp_path / "vessel.toml"
+    config.write_text("[ros]\ndomain_id = 500\n")
+    _fails_with(["vessel", "--check", "--config", str(config)], capsys, "domain_id", "500")
+    config.write_text("")
+    _fails_with(["vessel", "--check", "--config", str(config), "--seconds", "0"], capsys,
+                "--seconds")
+    _fails_with(["vessel", "--config", str(config), "--seconds", "3"], capsys,
+                "--seconds needs --check")
+
+
 def test_sim_vessel_bad_domain_and_start(capsys: pytest.CaptureFixture[str]) -> None:
     _fails_with(["sim-vessel", "coarse", "--domain-id", "500"], capsys, "--domain-id", "500")
     _fails_with(["sim-vessel", "coarse", "--start", "10,0,0"], capsys, "outside the arena")

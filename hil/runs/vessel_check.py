@@ -1,0 +1,151 @@
+"""`hil vessel --check`: a preflight that listens to the vessel's feeds and moves nothing.
+
+It synthesizes the scenario's controller as `hil vessel` does, then listens on the
+configured pose, IMU and obstacle topics (no publisher is created), and judges what it
+heard against the premises of the guarantee (:mod:`hil.runs.feed_check`): rate, jitter,
+latency, clock, frame id, NaN share and QoS per topic, and where the last pose puts the
+vessel (inside the arena, on which cell, winning from there at rest).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from hil.adapters.ros_listen import Heard, RosListener
+from hil.controllers.symbolic import NoWinningSetError
+from hil.runs.feed_check import (
+    CheckLine,
+    FeedSeries,
+    PositionFinding,
+    judge_imu_feed,
+    judge_pose_feed,
+    judge_position,
+    judge_publishers,
+)
+from hil.runs.stack_assembly import synthesizer_for
+from hil.runs.vessel_run import VesselConfig
+from hil.runtime.assembly import LayoutSolver, layout_from_scenario
+from hil.runtime.protocols import SymbolicController
+from hil.scenarios import Scenario, load_scenario
+
+__all__ = ["CheckReport", "check_vessel"]
+
+
+@dataclass(frozen=True)
+class CheckReport:
+    """The preflight's verdict, line by line.
+
+    Attributes:
+        lines: Every judged line, in the order printed.
+        time_source: "wall time" or "/clock (sim time)".
+        listened_s: How long the topics were listened to (s).
+    """
+
+    lines: tuple[CheckLine, ...]
+    time_source: str
+    listened_s: float
+
+    @property
+    def ok(self) -> bool:
+        """Whether every line passed."""
+        return all(line.ok for line in self.lines)
+
+
+def _series(heard: Heard) -> FeedSeries:
+    return FeedSeries(heard.topic, np.asarray(heard.arrival_ns, dtype=np.int64),
+                      np.asarray(heard.stamp_ns, dtype=np.int64),
+                      np.asarray(heard.finite, dtype=np.bool_), heard.frame_ids)
+
+
+def _obstacle_lines(heard: Heard) -> list[CheckLine]:
+    count = len(heard.arrival_ns)
+    finite = all(heard.finite)
+    return [CheckLine(heard.topic, "messages", f"{count} received, "
+                      f"{'all' if finite else 'not all'} finite",
+                      "tracked obstacles reported, finite", count > 0 and finite,
+                      "check the obstacle tracker publishes (ros2 topic hz " + heard.topic + ")")]
+
+
+def _position(listener: RosListener, scenario: Scenario,
+              controller: SymbolicController | None) -> PositionFinding:
+    pose = listener.last_pose()
+    if pose is None:
+        return PositionFinding(None, False, -1, math.inf)
+    eta = np.array([pose.x_m, pose.y_m, pose.yaw_rad])
+    arena = scenario.arena
+    inside = arena.x_min_m <= pose.x_m <= arena.x_max_m and \
+        arena.y_min_m <= pose.y_m <= arena.y_max_m
+    if controller is None:
+        return PositionFinding((pose.x_m, pose.y_m, pose.yaw_rad), inside, -1, math.inf)
+    cell = controller.locate(eta)
+    # At rest, as the vessel waits for the run: the first decision's value from nu = 0.
+    value = controller.value(eta, controller.nearest_input(np.zeros(3)), True) \
+        if cell >= 0 else math.inf
+    return PositionFinding((pose.x_m, pose.y_m, pose.yaw_rad), inside, cell, float(value))
+
+
+def check_vessel(config: VesselConfig, seconds: float,
+                 progress: Callable[[str], None]) -> CheckReport:
+    """Listen for `seconds` of wall time and judge the feeds and the vessel's pose.
+
+    Args:
+        config: The vessel configuration (`hil vessel --config`).
+        seconds: How long to listen (s), > 0.
+        progress: Receives a line per step.
+
+    Raises:
+        hil.scenarios.ScenarioError: The config's scenario cannot be read.
+        hil.adapters.ros.RosBackendError: ROS 2 cannot start.
+    """
+    scenario = load_scenario(config.scenario)
+    ros = config.ros
+    clock = "/clock (sim time)" if ros.use_sim_time else "wall time"
+    controller: SymbolicController | None = None
+    # Discovery runs while the controller is synthesized; the feeds are timed after it,
+    # as the synthesis holds the interpreter and would delay the arrivals it records.
+    with RosListener(ros) as listener:
+        progress(f"synthesizing the controller for the {scenario.name!r} scenario...")
+        synthesizer = synthesizer_for(scenario, threads=config.loop.synthesis_threads)
+        no_controller = ""
+        try:
+            controller = LayoutSolver(scenario, synthesizer)(layout_from_scenario(scenario))
+        except NoWinningSetError as err:
+            no_controller = str(err)
+        topics = [ros.topics.pose, ros.topics.imu] + (
+            [ros.topics.obstacles] if ros.topics.obstacles else [])
+        progress(f"listening on {', '.join(topics)} for {seconds:g} s (ROS domain "
+                 f"{listener.domain_id}, {clock}); no thruster publisher is created")
+        # A driver that was just started may take seconds to deliver (discovery, its own
+        # start-up): the window opens at the first pose, waited for as long as it lasts.
+        if not listener.wait_first("pose", seconds):
+            progress(f"nothing on {ros.topics.pose} after {seconds:g} s; listening anyway")
+        listener.restart()
+        start_s = time.monotonic()
+        time.sleep(seconds)
+        listened_s = time.monotonic() - start_s
+        pose, imu = listener.heard("pose"), listener.heard("imu")
+        assert pose is not None
+        assert imu is not None
+        lines = [judge_publishers(pose.topic, listener.publishers(pose.topic),
+                                  ros.best_effort_sensors, pose.qos_refusals),
+                 *judge_pose_feed(_series(pose), ros.pose_frame_id, ros.use_sim_time),
+                 judge_publishers(imu.topic, listener.publishers(imu.topic),
+                                  ros.best_effort_sensors, imu.qos_refusals),
+                 *judge_imu_feed(_series(imu), ros.use_sim_time)]
+        obstacles = listener.heard("obstacles")
+        if obstacles is not None:
+            lines += [judge_publishers(obstacles.topic, listener.publishers(obstacles.topic),
+                                       ros.best_effort_sensors, obstacles.qos_refusals),
+                      *_obstacle_lines(obstacles)]
+        finding = _position(listener, scenario, controller)
+    lines += judge_position(finding, config.scenario)
+    if no_controller:
+        lines.append(CheckLine("arena", "controller", no_controller,
+                               "a controller for the scenario", False,
+                               "check the scenario's obstacles and target"))
+    return CheckReport(tuple(lines), clock, listened_s)
