@@ -178,88 +178,106 @@ def fan_out(job: Job[S, R], specs: Sequence[S], executor: Executor,
         report: Called in this process as each run ends (a progress bar).
         max_attempts: Runs of a spec whose worker died before it is failed.
     """
-    out: FanOut[R] = FanOut([None] * len(specs))
-    if stream is not None:
-        for index, data in stream.finished.items():
-            out.results[index] = job.decode_result(data)
-        out.resumed = len(stream.finished)
-    pending: deque[tuple[int, int]] = deque(
-        (i, 1) for i in range(len(specs)) if out.results[i] is None)
-    in_flight: dict[Future[list[Outcome[R]]], list[tuple[int, int]]] = {}
-    run_s: list[float] = []  # wall time of each finished run, as its worker measured it
-    batch = Batch(job.run)
+    return _Fanning(job, specs, executor, stream, report, max_attempts).run()
 
-    def finish(index: int, attempt: int, outcome: Outcome[R] | BaseException) -> None:
+
+class _Fanning(Generic[S, R]):
+    """One fan-out in progress: the runs pending, in flight and finished."""
+
+    def __init__(self, job: Job[S, R], specs: Sequence[S], executor: Executor,
+                 stream: ResultStream | None, report: Report | None,
+                 max_attempts: int) -> None:
+        self.job, self.specs, self.executor = job, specs, executor
+        self.stream, self.report, self.max_attempts = stream, report, max_attempts
+        self.out: FanOut[R] = FanOut([None] * len(specs))
+        if stream is not None:
+            for index, data in stream.finished.items():
+                self.out.results[index] = job.decode_result(data)
+            self.out.resumed = len(stream.finished)
+        self.pending: deque[tuple[int, int]] = deque(
+            (i, 1) for i in range(len(specs)) if self.out.results[i] is None)
+        self.in_flight: dict[Future[list[Outcome[R]]], list[tuple[int, int]]] = {}
+        self.run_s: list[float] = []  # wall time of each finished run, as its worker measured it
+        self.batch = Batch(job.run)
+
+    def run(self) -> FanOut[R]:
+        """Submit every pending run and collect the results; Ctrl-C lets those in flight end."""
+        out, in_flight = self.out, self.in_flight
+        try:
+            while (self.pending or in_flight) and not out.stopped:
+                capacity = self.executor.capacity()
+                while self.pending and len(in_flight) < 2 * capacity:
+                    items = self.next_batch(capacity)
+                    specs = tuple(self.specs[i] for i, _ in items)
+                    in_flight[self.executor.submit(self.batch, specs)] = items
+                done, _ = wait(list(in_flight), return_when=FIRST_COMPLETED)
+                for future in done:
+                    self.settle(future, retry=True)
+        except KeyboardInterrupt:
+            out.stopped = "stopped by Ctrl-C"
+        if in_flight:
+            # No new run starts; those in flight finish (a lost cluster fails them at once).
+            try:
+                while in_flight:
+                    done, _ = wait(list(in_flight), return_when=FIRST_COMPLETED)
+                    for future in done:
+                        self.settle(future, retry=False)
+            except KeyboardInterrupt:
+                for future in in_flight:
+                    future.cancel()
+        return out
+
+    def finish(self, index: int, attempt: int, outcome: Outcome[R] | BaseException) -> None:
+        """Keep one run's result or failure, stream it and report it."""
+        out, stream, report = self.out, self.stream, self.report
         if isinstance(outcome, Ran):
             out.results[index] = outcome.result
-            run_s.append(outcome.wall_s)
+            self.run_s.append(outcome.wall_s)
             if stream is not None:
-                stream.record(index, job.encode_result(outcome.result))
+                stream.record(index, self.job.encode_result(outcome.result))
             if report is not None:
                 report(index, outcome.result)
             return
         why = outcome.error if isinstance(outcome, Raised) else _one_line(outcome)
         if isinstance(outcome, BaseException):
             why = f"its worker died {attempt} times (last: {why})"
-        failure = Failure(index, job.encode_spec(specs[index]), why)
+        failure = Failure(index, self.job.encode_spec(self.specs[index]), why)
         out.failures.append(failure)
         if stream is not None:
             stream.record_failure(index, failure.spec, failure.error)
         if report is not None:
             report(index, failure)
 
-    def settle(future: Future[list[Outcome[R]]], *, retry: bool) -> None:
-        items = in_flight.pop(future)
+    def settle(self, future: Future[list[Outcome[R]]], *, retry: bool) -> None:
+        """Take a finished call in: its runs' outcomes, or its lost worker's runs again."""
+        items = self.in_flight.pop(future)
         if future.cancelled():
             return  # cancelled by us: never started, not a result
         error = future.exception()
         if error is None:
             for (index, attempt), outcome in zip(items, future.result(), strict=True):
-                finish(index, attempt, outcome)
+                self.finish(index, attempt, outcome)
             return
-        if executor.cluster_lost(error):
-            out.stopped = out.stopped or _one_line(error)
+        if self.executor.cluster_lost(error):
+            self.out.stopped = self.out.stopped or _one_line(error)
             return
         for index, attempt in reversed(items):
-            if executor.worker_lost(error) and attempt < max_attempts:
-                out.retried += 1
+            if self.executor.worker_lost(error) and attempt < self.max_attempts:
+                self.out.retried += 1
                 if retry:
-                    pending.appendleft((index, attempt + 1))
-            elif executor.worker_lost(error):
-                finish(index, attempt, error)
+                    self.pending.appendleft((index, attempt + 1))
+            elif self.executor.worker_lost(error):
+                self.finish(index, attempt, error)
             else:  # the batch itself failed (it catches its runs' errors): report each
-                finish(index, attempt, Raised(_one_line(error)))
+                self.finish(index, attempt, Raised(_one_line(error)))
 
-    def next_batch(capacity: int) -> list[tuple[int, int]]:
+    def next_batch(self, capacity: int) -> list[tuple[int, int]]:
         """Take the next runs to submit together (one unless the executor batches)."""
         size = 1
-        if executor.batches and run_s:
+        run_s = self.run_s
+        if self.executor.batches and run_s:
             # About BATCH_S of work per call, yet every worker still gets several calls.
             mean_s = max(sum(run_s[-50:]) / len(run_s[-50:]), 1e-3)
             size = max(1, min(math.ceil(BATCH_S / mean_s),
-                              len(pending) // (2 * capacity), MAX_BATCH))
-        return [pending.popleft() for _ in range(min(size, len(pending)))]
-
-    try:
-        while (pending or in_flight) and not out.stopped:
-            capacity = executor.capacity()
-            while pending and len(in_flight) < 2 * capacity:
-                items = next_batch(capacity)
-                future = executor.submit(batch, tuple(specs[i] for i, _ in items))
-                in_flight[future] = items
-            done, _ = wait(list(in_flight), return_when=FIRST_COMPLETED)
-            for future in done:
-                settle(future, retry=True)
-    except KeyboardInterrupt:
-        out.stopped = "stopped by Ctrl-C"
-    if in_flight:
-        # No new run starts; those in flight finish (a lost cluster fails them at once).
-        try:
-            while in_flight:
-                done, _ = wait(list(in_flight), return_when=FIRST_COMPLETED)
-                for future in done:
-                    settle(future, retry=False)
-        except KeyboardInterrupt:
-            for future in in_flight:
-                future.cancel()
-    return out
+                              len(self.pending) // (2 * capacity), MAX_BATCH))
+        return [self.pending.popleft() for _ in range(min(size, len(self.pending)))]
