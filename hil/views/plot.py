@@ -102,29 +102,8 @@ def _label_path(ax: Axes, xy: FloatArray) -> None:
         )
 
 
-def draw_arena(ax: Axes, run: RunData, scenario: Scenario | None, hull_every_s: float) -> None:
-    """Draw the arena, obstacles, targets, trajectory and hull outlines on `ax`.
-
-    The arena is seen from above (:func:`orient_from_above`); obstacles and the
-    target are named, the path's start and end marked.
-    """
-    if scenario is not None:
-        x, y = _closed(scenario.arena.vertices())
-        ax.plot(x, y, color="0.3", lw=1.5)
-        ax.add_patch(
-            PolygonPatch(
-                scenario.target.shape.vertices(),
-                closed=True,
-                fc="#b8e6c1",
-                ec="#2a9d48",
-                lw=1.2,
-                label="target T1",
-            )
-        )
-        tx, ty = scenario.target.shape.vertices().mean(axis=0)
-        ax.text(tx, ty, "T1", ha="center", va="center", fontsize=8, color="#2a9d48")
-        x, y = _closed(scenario.abstract_target().vertices())
-        ax.plot(x, y, color="#2a9d48", lw=1.0, ls="--", label="abstract target T2")
+def _draw_obstacles(ax: Axes, run: RunData, scenario: Scenario | None) -> None:
+    """Draw the newest layout's real (named) and inflated obstacles; the first one dotted."""
     layouts = run.layouts[-1:]  # the newest layout; moving obstacles: first one dotted
     if len(run.layouts) > 1:
         for poly in run.layouts[0].real:
@@ -157,6 +136,32 @@ def draw_arena(ax: Axes, run: RunData, scenario: Scenario | None, hull_every_s: 
                 ls="--",
                 label="inflated obstacle" if n == 0 else None,
             )
+
+
+def draw_arena(ax: Axes, run: RunData, scenario: Scenario | None, hull_every_s: float) -> None:
+    """Draw the arena, obstacles, targets, trajectory and hull outlines on `ax`.
+
+    The arena is seen from above (:func:`orient_from_above`); obstacles and the
+    target are named, the path's start and end marked.
+    """
+    if scenario is not None:
+        x, y = _closed(scenario.arena.vertices())
+        ax.plot(x, y, color="0.3", lw=1.5)
+        ax.add_patch(
+            PolygonPatch(
+                scenario.target.shape.vertices(),
+                closed=True,
+                fc="#b8e6c1",
+                ec="#2a9d48",
+                lw=1.2,
+                label="target T1",
+            )
+        )
+        tx, ty = scenario.target.shape.vertices().mean(axis=0)
+        ax.text(tx, ty, "T1", ha="center", va="center", fontsize=8, color="#2a9d48")
+        x, y = _closed(scenario.abstract_target().vertices())
+        ax.plot(x, y, color="#2a9d48", lw=1.0, ls="--", label="abstract target T2")
+    _draw_obstacles(ax, run, scenario)
     path = run.estimate if len(run.estimate) else run.pose
     xy = path.values[:, :2]
     if len(xy):
