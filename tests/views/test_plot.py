@@ -69,7 +69,10 @@ def test_hil_plot_writes_a_non_empty_png(
         round(FIGURE_SIZE_IN[0] * DEFAULT_DPI),
         round(FIGURE_SIZE_IN[1] * DEFAULT_DPI),
     )
-    assert f"wrote {out}" in capsys.readouterr().out
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0] == f"hil plot: reading {bag} ..."
+    assert f"hil plot: drawing {out} ..." in lines
+    assert lines[-1].startswith(f"wrote {out} in ")
 
 
 def test_hil_plot_refuses_a_bad_log_in_one_line(
