@@ -182,10 +182,15 @@ def run(args: argparse.Namespace) -> int:
             f"not enough memory to synthesize on the scenario's grid of {args.scenario!r} "
             f"({err}): use a coarser [grid] cell_m or fewer heading_cells"
         )
-    status = _report(args, scenario, solved)
+    if args.save is not None:
+        with stages.stage(f"saving {args.save}"):
+            solved.first.save(args.save)
+    with stages.stage("counting the winning, first-decision and safety cells"):
+        summary = _summary(args, scenario, solved)
+    status = _report(args, scenario, solved, summary)
     stages.say(f"done in {stages.total_s():.1f} s")
     if args.json:
-        print(json.dumps(_summary(args, scenario, solved)))
+        print(json.dumps(summary))
     return status
 
 
@@ -263,13 +268,12 @@ def _synthesis_text(solved: _Solved) -> str:
     return text
 
 
-def _report(args: argparse.Namespace, scenario: Scenario, solved: _Solved) -> int:
-    """Print the report; return 1 when no start can dock, else 0."""
+def _report(
+    args: argparse.Namespace, scenario: Scenario, solved: _Solved, summary: dict[str, Any]
+) -> int:
+    """Print the report (`summary` from :func:`_summary`); return 1 when no start can dock."""
     grid, controller = solved.problem.grid, solved.first
     stats = controller.stats
-    if args.save is not None:
-        controller.save(args.save)
-    summary = _summary(args, scenario, solved)
     print(f"scenario     {scenario.name}: {scenario.description}")
     print(
         f"grid         {grid.nx} x {grid.ny} x {grid.npsi} = {grid.n_cells} cells, "
