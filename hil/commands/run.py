@@ -116,7 +116,7 @@ def run(args: argparse.Namespace) -> int:
                       synthesis_latency_s=args.synthesis_latency or 0.0,
                       pose_noise_scale=args.pose_noise_scale)
     rerun = None if args.rerun is None else _live_rerun(args.rerun)
-    what = f"the {name} scenario (seed {args.seed})"
+    what = f"{name}, seed {args.seed}"
     try:
         with console.status(f"starting {what} ...") as status:
 

@@ -3,8 +3,8 @@
 :class:`StageLog` sits between the runtime and the run's log (a live view, as
 ``--rerun`` does) and passes every record on; from the controllers taken and the
 decisions made it tells which stage the run is in ("synthesizing the first
-controller", then "docking: t = 12.0 s simulated, 6 decisions, ...") and where its
-controllers came from (solved, from the store, from memory).
+controller", then "docking, 12.0 s simulated, 6 decisions, ...") and where its
+controllers came from (solved, stored, memory).
 """
 
 from __future__ import annotations
@@ -18,10 +18,11 @@ from hil.runtime.protocols import RunLog
 
 _SOURCE_WORDS = {
     ControllerSource.SOLVED: "solved",
-    ControllerSource.STORE: "from the store",
-    ControllerSource.MEMORY: "from memory",
-    ControllerSource.UNKNOWN: "of unknown source",
+    ControllerSource.STORE: "stored",
+    ControllerSource.MEMORY: "memory",
+    ControllerSource.UNKNOWN: "unknown",
 }
+"""Short words, so that the spinner's line fits an 80-column terminal."""
 
 
 class StageLog:
@@ -30,7 +31,7 @@ class StageLog:
     Args:
         inner: The log that keeps the records (recorder, memory, live view).
         show: Called with the stage's text whenever it changes (a spinner's update).
-        what: The run in words ("the coarse scenario (seed 0)").
+        what: The run in words ("coarse, seed 0").
     """
 
     def __init__(self, inner: RunLog, show: Callable[[str], None], what: str) -> None:
@@ -40,7 +41,7 @@ class StageLog:
         self.sources: dict[ControllerSource, int] = {}
         self.decisions = 0
         self.start_ns: int | None = None
-        self.show(f"synthesizing the first controller for {what} (or reading it from the store)")
+        self.show(f"{what}: synthesizing the first controller (or reading the store)")
 
     def _sources_text(self) -> str:
         return ", ".join(
@@ -51,8 +52,8 @@ class StageLog:
         start = self.start_ns if self.start_ns is not None else t_ns
         taken = sum(self.sources.values())
         self.show(
-            f"docking in {self.what}: t = {(t_ns - start) / 1e9:.1f} s simulated, "
-            f"{self.decisions} decisions, {taken} controller(s) ({self._sources_text()})"
+            f"{self.what}: docking, {(t_ns - start) / 1e9:.1f} s simulated, "
+            f"{self.decisions} decisions, {taken} controllers ({self._sources_text()})"
         )
 
     def pose(self, sample: PoseSample) -> None:

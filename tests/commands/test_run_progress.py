@@ -22,15 +22,14 @@ def _ready(
 def test_stage_log_says_the_stage_and_passes_every_record_on() -> None:
     shown: list[str] = []
     inner = MemoryLog()
-    log = StageLog(inner, shown.append, "the coarse scenario (seed 0)")
-    assert shown[-1].startswith("synthesizing the first controller for the coarse scenario")
+    log = StageLog(inner, shown.append, "coarse, seed 0")
+    assert shown[-1] == "coarse, seed 0: synthesizing the first controller (or reading the store)"
     log.pose(PoseSample(1_000_000_000, 0.0, 0.0, 0.0))
     log.controller_ready(_ready(1_000_000_000, 1, ControllerSource.STORE))
     log.controller_ready(_ready(3_000_000_000, 2, ControllerSource.SOLVED, complete=False))
     log.controller_ready(_ready(3_500_000_000, 2, ControllerSource.MEMORY))
     assert shown[-1] == (
-        "docking in the coarse scenario (seed 0): t = 2.5 s simulated, 0 decisions, "
-        "2 controller(s) (1 from the store, 1 from memory)"
+        "coarse, seed 0: docking, 2.5 s simulated, 0 decisions, 2 controllers (1 stored, 1 memory)"
     )
     assert len(inner.controllers) == 3
     assert len(inner.poses) == 1
