@@ -99,6 +99,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         _quiet_stdout()
         return EXIT_BROKEN_PIPE
     except MemoryError as err:
-        print(f"hil {args.command}: out of memory ({err})", file=sys.stderr)
+        print(f"hil {args.command}: error: out of memory ({err})", file=sys.stderr)
         return 2
     return status

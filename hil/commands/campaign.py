@@ -15,13 +15,14 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-from hil.commands.common import positive_seconds
+from hil.commands.common import non_negative_int, positive_seconds
 from hil.commands.executor_cli import (
     add_executor_arguments,
     add_results_arguments,
     executor_choice,
     run_specs,
 )
+from hil.commands.stages import Stages
 
 HELP = "run many simulated dockings from random starts in parallel and compare with the paper"
 
@@ -32,7 +33,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="packaged name or .toml path (default: paper)")
     parser.add_argument("-n", type=int, default=200, help="number of runs (default 200)")
     add_executor_arguments(parser, None)
-    parser.add_argument("--seed", type=int, default=0, help="seed of the starts and the runs")
+    parser.add_argument("--seed", type=non_negative_int, default=0,
+                        help="seed of the starts and the runs")
     parser.add_argument("--max-duration", type=positive_seconds, default=600.0, metavar="S",
                         help="give a run up after this many simulated seconds")
     parser.add_argument("--moving", type=float, default=0.5, metavar="FRACTION",
@@ -55,6 +57,7 @@ def run(args: argparse.Namespace) -> int:
     3 the Dask scheduler went away (the finished runs are still reported, table and
     JSON, and kept in the results file).
     """
+    Stages("hil campaign").say(f"{args.n} runs of scenario {args.scenario}: loading ...")
     from rich.console import Console
 
     from hil.commands.campaign_report import report
@@ -77,13 +80,13 @@ def run(args: argparse.Namespace) -> int:
     from hil.scenarios import ScenarioError, load_scenario
 
     if args.n < 1 or args.workers < 1:
-        print("hil campaign: -n and --workers must be at least 1", file=sys.stderr)
+        print("hil campaign: error: -n and --workers must be at least 1", file=sys.stderr)
         return 2
     try:
         require_backend(executor_choice(args))
         policies = policies_of(args.select)
     except (ExecutorError, ValueError) as err:
-        print(f"hil campaign: {err}", file=sys.stderr)
+        print(f"hil campaign: error: {err}", file=sys.stderr)
         return 2
     console = Console(stderr=args.json)
     try:
@@ -96,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
             settle_s=first_decision_s(LoopConfig()), scenario=scenario,
         )
     except (ScenarioError, SymbolicError, ValueError) as err:
-        print(f"hil campaign: {err}", file=sys.stderr)
+        print(f"hil campaign: error: {err}", file=sys.stderr)
         return 2
     # Static obstacles: re-synthesis on a timer would recompute the same controller.
     base = SimRunSpec(scenario=args.scenario, loop=LoopConfig(

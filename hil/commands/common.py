@@ -61,6 +61,21 @@ def _positive(text: str, what: str) -> float:
     return value
 
 
+def non_negative_int(text: str) -> int:
+    """Parse a whole number >= 0 (a seed).
+
+    Raises:
+        argparse.ArgumentTypeError: Naming the value and what is allowed.
+    """
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"needs a whole number >= 0, got {text!r}")
+    return value
+
+
 def start_pose(text: str) -> tuple[float, float, float]:
     """Parse ``X,Y,PSI_DEG`` (m, m, deg) into (x m, y m, psi rad).
 

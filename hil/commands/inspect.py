@@ -17,6 +17,7 @@ import sys
 from pathlib import Path
 
 from hil.commands.lab_args import add_lab_arguments, load_for_view
+from hil.commands.stages import Stages
 
 HELP = "Open a recorded run in Rerun (write an .rrd, or --spawn the viewer)."
 
@@ -83,6 +84,8 @@ def run(args: argparse.Namespace) -> int:
     Returns:
         0 on success; 2 when the log cannot be read or the output not written.
     """
+    stages = Stages(_PROG, stream=sys.stdout)
+    stages.say(f"reading {args.log} ...")
     from hil.bag.errors import ReplayError
     from hil.commands.common import missing_display
 
@@ -105,22 +108,33 @@ def run(args: argparse.Namespace) -> int:
         _note(note)
     from hil.views.controller_view import controller_view
 
+    stages.say(
+        f"read {len(data.decisions)} decisions, {len(data.layouts)} obstacle layout(s), "
+        f"scenario {scenario.name if scenario is not None else 'unknown'}"
+    )
     view = None
     if scenario is not None and not args.no_winning_set:
-        view = controller_view(data, scenario, budget_s=args.synthesis_budget)
+        with stages.stage(
+            f"re-synthesizing the winning set for {len(data.layouts)} layout(s) "
+            f"(budget {args.synthesis_budget:g} s; solved layouts come from the store)"
+        ):
+            view = controller_view(data, scenario, budget_s=args.synthesis_budget)
         if view.note:
             _note(view.note)
     from hil.views import rerun_export
 
     try:
         if output is not None:
-            stats = rerun_export.write_rrd(data, output, scenario, view)
+            with stages.stage(f"writing {output}"):
+                stats = rerun_export.write_rrd(data, output, scenario, view)
             print(
                 f"wrote {output} ({stats.bytes / 1e6:.2f} MB, {stats.rows} rows, "
-                f"{len(data.decisions)} decisions) in {stats.seconds:.2f} s"
+                f"{len(data.decisions)} decisions) in {stages.total_s():.2f} s "
+                f"(writing {stats.seconds:.2f} s)"
             )
         if args.spawn:
-            rerun_export.spawn_viewer(data, scenario, view)
+            with stages.stage("streaming the run to the Rerun viewer"):
+                rerun_export.spawn_viewer(data, scenario, view)
     except (rerun_export.ViewerError, rerun_export.RrdWriteError) as err:
         return _error(str(err))
     except OSError as err:

@@ -18,6 +18,7 @@ import sys
 from pathlib import Path
 
 from hil.commands.common import EXIT_BAD_INPUT
+from hil.commands.stages import Stages
 
 HELP = "judge a recorded run's decisions on a true trajectory recorded outside hil"
 
@@ -36,6 +37,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Judge and print the counts; 0 no violation, 1 a violation or an unjudged decision."""
+    Stages("hil judge").say(f"reading {args.log} and the truth {args.truth} ...")
     from hil.adapters.ros import RosConfig
     from hil.bag.errors import ReplayError
     from hil.core.config import ConfigError
@@ -50,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
         judged = judge_log_on_truth(args.log, load_truth(args.truth), ros.transform,
                                     tick_s=tick_s)
     except (ConfigError, ReplayError, ScenarioError) as err:
-        print(f"hil judge: {err}", file=sys.stderr)
+        print(f"hil judge: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
     g = judged.violations
     lines = [

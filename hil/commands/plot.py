@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 
 from hil.commands.lab_args import add_lab_arguments, load_for_view
+from hil.commands.stages import Stages
 
 HELP = "Draw a recorded run: arena with trajectory and hull, velocity tracking (PNG)."
 
@@ -51,6 +52,8 @@ def run(args: argparse.Namespace) -> int:
     Returns:
         0 on success; 2 when the log cannot be read or the picture not written.
     """
+    stages = Stages(_PROG, stream=sys.stdout)
+    stages.say(f"reading {args.log} ...")
     from hil.bag.errors import ReplayError
 
     log, output = Path(args.log), Path(args.output)
@@ -74,14 +77,15 @@ def run(args: argparse.Namespace) -> int:
     for note in notes:  # damaged files, repairs, what a lab bag's reading assumed
         print(f"{_PROG}: note: {note}", file=sys.stderr)
     try:
-        save_run_figure(
-            data,
-            scenario,
-            output,
-            dpi=args.dpi or DEFAULT_DPI,
-            hull_every_s=args.hull_every or HULL_EVERY_S,
-        )
+        with stages.stage(f"drawing {output}"):
+            save_run_figure(
+                data,
+                scenario,
+                output,
+                dpi=args.dpi or DEFAULT_DPI,
+                hull_every_s=args.hull_every or HULL_EVERY_S,
+            )
     except OSError as err:
         return _error(f"cannot write {str(output)!r}: {err.strerror or err}")
-    print(f"wrote {output}")
+    print(f"wrote {output} in {stages.total_s():.2f} s")
     return 0

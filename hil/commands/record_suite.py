@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from hil.commands.executor_cli import add_executor_arguments, executor_choice
+from hil.commands.stages import Stages
 
 if TYPE_CHECKING:  # the CLI imports every command for --help: keep numba out of it
     from hil.bag.messages import Record
@@ -297,6 +298,7 @@ def _no_decode(data: object) -> dict[str, bytes]:
 
 def run(args: argparse.Namespace) -> int:
     """Regenerate the suite; return 0, or 2 on bad arguments or a failed run."""
+    Stages("hil record-suite").say("loading the suite's manifest and the simulator ...")
     from hil.replay.resim import MANIFEST
     from hil.runs.backends import require_backend
     from hil.runs.errors import ExecutorError
@@ -311,11 +313,11 @@ def run(args: argparse.Namespace) -> int:
     try:
         require_backend(executor_choice(args))
     except ExecutorError as err:
-        print(f"hil record-suite: {err}", file=sys.stderr)
+        print(f"hil record-suite: error: {err}", file=sys.stderr)
         return 2
     if unknown or args.workers < 1:
         print(
-            f"hil record-suite: unknown run(s) {unknown!r} or --workers < 1; "
+            f"hil record-suite: error: unknown run(s) {unknown!r} or --workers < 1; "
             f"runs: {[r.name for r in runs]!r}",
             file=sys.stderr,
         )
@@ -344,12 +346,12 @@ def run(args: argparse.Namespace) -> int:
             with open_executor(executor_choice(args), job.warm) as executor:
                 out = fan_out(job, chosen, executor, report=write)
         except ExecutorError as err:
-            print(f"hil record-suite: {err}", file=sys.stderr)
+            print(f"hil record-suite: error: {err}", file=sys.stderr)
             return 2
         if out.failures or out.stopped:
             why = out.stopped or "; ".join(f"{chosen[f.index].name}: {f.error}"
                                            for f in out.failures)
-            print(f"hil record-suite: a run failed: {why}", file=sys.stderr)
+            print(f"hil record-suite: error: a run failed: {why}", file=sys.stderr)
             return 2
         for item in chosen:
             new, old = Path(staging) / item.name, target / item.name

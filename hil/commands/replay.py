@@ -14,15 +14,19 @@ Logs are only read, never modified.
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import functools
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
 from hil.commands.executor_cli import add_executor_arguments, executor_choice
 from hil.commands.replay_progress import ReplayProgress
+from hil.commands.stages import Stages
 
 if TYPE_CHECKING:
     from hil.replay.controllers import ScenarioCache
+    from hil.replay.job import ReplayTask
     from hil.replay.options import ReplayOptions
     from hil.replay.regression import LogReport
 
@@ -213,8 +217,20 @@ def _open_jsonl(target: Path) -> TextIO:
     return target.open("w", encoding="utf-8")
 
 
+def _replay_here(progress: ReplayProgress, task: ReplayTask) -> LogReport:
+    """Replay `task` in this process, showing the log's current step on `progress`."""
+    from hil.replay.job import process_caches, replay_task
+    from hil.replay.replayer import replay_log
+
+    if task.files is not None:  # shipped bytes: the worker's path, no steps to show
+        return replay_task(task)
+    caches = process_caches(task.options.cache_dir)
+    return replay_log(task.path, task.options, caches, progress=progress.step(Path(task.path)))
+
+
 def run(args: argparse.Namespace) -> int:
     """Replay every log, print the reports; return 0, 1 (regression) or 2 (bad log)."""
+    Stages("hil replay").say(f"replaying {len(args.logs)} log argument(s) ...")
     from hil.adapters.log import LogConfig
     from hil.replay.job import REPLAY_JOB, process_caches, task_for
     from hil.replay.lab import load_lab_config
@@ -240,7 +256,7 @@ def run(args: argparse.Namespace) -> int:
         log_config = LogConfig(pose_delay_ns=round(args.pose_delay_ms * 1e6))
         lab, lab_loop = load_lab_config(args.config)
     except (ValueError, ExecutorError) as err:
-        print(f"hil replay: {_one_line(err)}", file=sys.stderr)
+        print(f"hil replay: error: {_one_line(err)}", file=sys.stderr)
         return 2
     options = ReplayOptions(
         tolerance=tolerance,
@@ -258,7 +274,7 @@ def run(args: argparse.Namespace) -> int:
             jsonl = _open_jsonl(args.jsonl)
         except OSError as err:
             where = repr(str(args.jsonl))
-            print(f"hil replay: cannot write {where}: {_one_line(err)}", file=sys.stderr)
+            print(f"hil replay: error: cannot write {where}: {_one_line(err)}", file=sys.stderr)
             return 2
     # The reports go to stdout, or to stderr when stdout carries JSON.
     to_stderr = args.json or (jsonl is sys.stdout)
@@ -273,7 +289,7 @@ def run(args: argparse.Namespace) -> int:
         emit(f"skipped {path}: {why}")
     if not logs:
         print(
-            f"hil replay: no bag among {len(args.logs)} argument(s) "
+            f"hil replay: error: no bag among {len(args.logs)} argument(s) "
             f"({', '.join(str(p) for p in args.logs[:3])}{', ...' if len(args.logs) > 3 else ''})",
             file=sys.stderr,
         )
@@ -294,7 +310,7 @@ def run(args: argparse.Namespace) -> int:
             if args.rerun is not None and not report.error:
                 emit(f"  rerun: {_write_replay_rrd(path, args.rerun, caches, options, report)}")
             if report.error:
-                print(f"hil replay: {report.path}: {report.error}", file=sys.stderr)
+                print(f"hil replay: error: {report.path}: {report.error}", file=sys.stderr)
             if jsonl is not None:
                 jsonl.write("".join(line + "\n" for line in jsonl_lines(report)))
                 jsonl.flush()
@@ -302,12 +318,18 @@ def run(args: argparse.Namespace) -> int:
     try:
         executor = open_executor(choice, REPLAY_JOB.warm)
     except ExecutorError as err:
-        print(f"hil replay: {err}", file=sys.stderr)
+        print(f"hil replay: error: {err}", file=sys.stderr)
         return 2
-    with ReplayProgress(len(logs)) as progress, executor:
+    # Only a replay in this process can show each log's step; workers report logs done.
+    progress = ReplayProgress(len(logs))
+    here = choice.scheduler is None and not choice.dask and choice.workers == 1
+    job = REPLAY_JOB
+    if here:
+        job = dataclasses.replace(REPLAY_JOB, run=functools.partial(_replay_here, progress))
+    with progress, executor:
         if executor.dashboard:
             emit(f"Dask dashboard: {executor.dashboard}")
-        outcome = fan_out(REPLAY_JOB, tasks, executor, report=ended)
+        outcome = fan_out(job, tasks, executor, report=ended)
     if outcome.stopped:
         print(f"hil replay: {outcome.stopped}: {len(reports)} of {len(logs)} logs replayed",
               file=sys.stderr)
@@ -318,9 +340,8 @@ def run(args: argparse.Namespace) -> int:
         try:
             args.junit.write_text(junit_xml(reports))
         except OSError as err:
-            print(
-                f"hil replay: cannot write {str(args.junit)!r}: {_one_line(err)}", file=sys.stderr
-            )
+            where = repr(str(args.junit))
+            print(f"hil replay: error: cannot write {where}: {_one_line(err)}", file=sys.stderr)
             code = max(code, 2)
     if jsonl is not None:
         jsonl.write(verdict_jsonl(reports) + "\n")

@@ -19,10 +19,12 @@ from hil.commands.common import (
     EXIT_DOCKED,
     EXIT_NOT_DOCKED,
     missing_display,
+    non_negative_int,
     positive_factor,
     positive_seconds,
     start_pose,
 )
+from hil.commands.stages import Stages
 
 if TYPE_CHECKING:
     from hil.runs.sim_run import LiveView
@@ -36,7 +38,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Declare the command's arguments."""
     parser.add_argument("scenario", nargs="?", default="paper", metavar="SCENARIO",
                         help="packaged name (paper, coarse) or a .toml path (default: paper)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the simulated world")
+    parser.add_argument("--seed", type=non_negative_int, default=0,
+                        help="seed of the simulated world")
     parser.add_argument("--start", type=start_pose, default=None, metavar="X,Y,PSI_DEG",
                         help="start pose (m, m, deg); default: right of the arena, bow up")
     parser.add_argument("--backend", choices=("sim",), default="sim",
@@ -79,9 +82,13 @@ def run(args: argparse.Namespace) -> int:
     its next tick, zero thrust, the log complete and named on the console), 2 bad input
     (before anything ran), 3 aborted (synthesis failed, or the start has no safe input).
     """
+    stages = Stages("hil run")
+    stages.say(f"scenario {args.scenario} (seed {args.seed}): loading the simulator and the "
+               "controller's tables")
     from rich.console import Console
 
     from hil.bag.errors import ReplayError
+    from hil.commands.run_progress import StageLog
     from hil.controllers.symbolic import SymbolicError
     from hil.runs.sim_run import SimRunSpec, run_in_sim
     from hil.runs.stack_assembly import default_start
@@ -90,14 +97,14 @@ def run(args: argparse.Namespace) -> int:
 
     console = Console(stderr=args.json)
     if args.rerun == "spawn" and (headless := missing_display()) is not None:
-        print(f"hil run: --rerun needs a viewer window but there is {headless}: "
+        print(f"hil run: error: --rerun needs a viewer window but there is {headless}: "
               "stream into a file instead (--rerun run.rrd)", file=sys.stderr)
         return EXIT_BAD_INPUT
     try:
         scenario = load_scenario(args.scenario)
         check_start(scenario, *(args.start or default_start(scenario)))
     except ScenarioError as err:
-        print(f"hil run: {err}", file=sys.stderr)
+        print(f"hil run: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
     name = scenario.name
     out = None
@@ -108,18 +115,25 @@ def run(args: argparse.Namespace) -> int:
                       loop=LoopConfig(max_duration_s=args.max_duration),
                       synthesis_latency_s=args.synthesis_latency or 0.0,
                       pose_noise_scale=args.pose_noise_scale)
-    live = None if args.rerun is None else _live_rerun(args.rerun)
+    rerun = None if args.rerun is None else _live_rerun(args.rerun)
+    what = f"{name}, seed {args.seed}"
     try:
-        with console.status(f"docking in the {name} scenario (seed {args.seed})..."):
+        with console.status(f"starting {what} ...") as status:
+
+            def live(scenario: Scenario, inner: RunLog) -> RunLog:
+                inner = inner if rerun is None else rerun(scenario, inner)
+                return StageLog(inner, status.update, what)
+
             summary = run_in_sim(spec, live=live, handle_signals=True)
     except (ScenarioError, SymbolicError, ReplayError, ValueError) as err:
-        print(f"hil run: {err}", file=sys.stderr)
+        print(f"hil run: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except MemoryError as err:
-        print(f"hil run: not enough memory for the {name!r} grid ({err}): "
+        print(f"hil run: error: not enough memory for the {name!r} grid ({err}): "
               "use a coarser [grid] cell_m or fewer heading_cells", file=sys.stderr)
         return EXIT_BAD_INPUT
     summary.render(console)
+    stages.say(f"done in {stages.total_s():.1f} s")
     where = f"log: {summary.log or 'not recorded'}"
     if summary.aborted:
         print(f"hil run: aborted: {summary.end_reason} ({where})", file=sys.stderr)

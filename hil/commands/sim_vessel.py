@@ -11,7 +11,7 @@ import signal
 import sys
 from types import FrameType
 
-from hil.commands.common import positive_seconds, start_pose
+from hil.commands.common import non_negative_int, positive_seconds, start_pose
 
 HELP = "simulate the vessel as a ROS 2 node on the lab's topics (for DDS tests of the stack)"
 
@@ -20,7 +20,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Declare the command's arguments."""
     parser.add_argument("scenario", nargs="?", default="paper", metavar="SCENARIO",
                         help="scenario whose arena and obstacles to simulate (default: paper)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the sensor noise")
+    parser.add_argument("--seed", type=non_negative_int, default=0, help="seed of the sensor noise")
     parser.add_argument("--start", type=start_pose, default=None, metavar="X,Y,PSI_DEG",
                         help="start pose (m, m, deg); default: right of the arena, bow up")
     parser.add_argument("--speed", type=float, default=1.0,
@@ -54,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
         node = SimVesselNode(world, RosConfig(use_sim_time=args.clock, domain_id=args.domain_id),
                              speed=args.speed)
     except (ScenarioError, ValueError) as err:
-        print(f"hil sim-vessel: {err}", file=sys.stderr)
+        print(f"hil sim-vessel: error: {err}", file=sys.stderr)
         return 2
 
     def stop(signum: int, _frame: FrameType | None) -> None:
@@ -71,6 +71,6 @@ def run(args: argparse.Namespace) -> int:
         if node.stopped_by is not None:
             progress(f"stopped by {node.stopped_by}")
     except RosBackendError as err:
-        print(f"hil sim-vessel: {err}", file=sys.stderr)
+        print(f"hil sim-vessel: error: {err}", file=sys.stderr)
         return 2
     return 0

@@ -21,6 +21,7 @@ from hil.commands.executor_cli import (
     executor_choice,
     run_specs,
 )
+from hil.commands.stages import Stages
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -69,6 +70,7 @@ def _by_axis(console: Console, points: list[SweepPoint], outcome: CampaignResult
 
 def run(args: argparse.Namespace) -> int:
     """Run the sweep; return the exit status (as ``hil campaign``)."""
+    Stages("hil sweep").say(f"reading {args.file} and loading the simulator ...")
     import json
 
     from rich.console import Console
@@ -80,14 +82,14 @@ def run(args: argparse.Namespace) -> int:
     from hil.runs.sweep import SweepError, load_sweep
 
     if args.workers < 1:
-        print("hil sweep: --workers must be at least 1", file=sys.stderr)
+        print("hil sweep: error: --workers must be at least 1", file=sys.stderr)
         return 2
     try:
         require_backend(executor_choice(args))
         sweep = load_sweep(args.file)
         points = sweep.points()
     except (ExecutorError, SweepError) as err:
-        print(f"hil sweep: {err}", file=sys.stderr)
+        print(f"hil sweep: error: {err}", file=sys.stderr)
         return 2
     specs = [p.spec for p in points]
     job = sim_job("sweep", sweep.scenarios)

@@ -70,10 +70,10 @@ def run(args: argparse.Namespace) -> int:
             return _check(config, 5.0 if args.seconds is None else args.seconds, progress)
         summary = run_on_ros(config, args.out, progress=progress)
     except (ConfigError, ScenarioError, RosBackendError, ReplayError) as err:
-        print(f"hil vessel: {err}", file=sys.stderr)
+        print(f"hil vessel: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except MemoryError as err:
-        print(f"hil vessel: not enough memory for the scenario's grid ({err}): "
+        print(f"hil vessel: error: not enough memory for the scenario's grid ({err}): "
               "use a coarser [grid] cell_m or fewer heading_cells", file=sys.stderr)
         return EXIT_BAD_INPUT
     summary.render(Console(stderr=args.json))

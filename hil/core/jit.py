@@ -95,6 +95,15 @@ def cache_lock() -> Iterator[None]:
             fcntl.flock(handle, fcntl.LOCK_UN)
 
 
+def kernels_cached() -> bool:
+    """Return True when numba's cache of this source tree holds compiled kernels.
+
+    False means the next kernel calls compile (the first run after an edit of the
+    package); commands say so before the wait.
+    """
+    return any(CACHE_DIR.rglob("*.nbi"))
+
+
 def _marker(key: str) -> Path:
     return CACHE_DIR / f".warmed-{hashlib.sha256(key.encode()).hexdigest()[:16]}"
 

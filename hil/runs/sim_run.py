@@ -24,7 +24,13 @@ from hil.adapters.sim import ObstacleMotion, SimConfig, SimWorld, ThrusterOutage
 from hil.bag.recorder import Recorder
 from hil.bag.run_info import RunInfo
 from hil.controllers.pid import PidGains
-from hil.controllers.symbolic import Controller, Select, SymbolicAdapter, wait_slowest
+from hil.controllers.symbolic import (
+    Controller,
+    ControllerSources,
+    Select,
+    SymbolicAdapter,
+    wait_slowest,
+)
 from hil.core.clock import NS_PER_S
 from hil.core.codec import from_jsonable, to_jsonable
 from hil.core.motion import displacements_m
@@ -286,6 +292,7 @@ def simulate(
     sim = SimWorld(config, max_duration_s=spec.loop.max_duration_s + 10.0)
     world = World(sim.clock, sim.pose, sim.imu, sim.obstacles, sim.thrusters)
     synthesizer = synthesizer_for(scenario, spec.cache_dir, spec.loop.synthesis_threads)
+    sources_before = synthesizer.sources.copy()
     recorder: Recorder | None = None
     if spec.out_dir is not None:
         # The full specification goes into the metadata, so a replay re-simulates exactly.
@@ -312,13 +319,17 @@ def simulate(
     finally:
         if recorder is not None:
             recorder.close()
-    summary = summarize(spec, scenario, sim, stats, time.perf_counter() - wall_start)
+    summary = summarize(spec, scenario, sim, stats, time.perf_counter() - wall_start,
+                        synthesizer.sources.minus(sources_before))
     return SimOutcome(summary, scenario, sim, stats, solver.controllers)
 
 
 def summarize(spec: SimRunSpec, scenario: Scenario, sim: SimWorld, stats: RunStats,
-              wall_s: float) -> RunSummary:
-    """Judge a finished simulated run by the world's ground truth."""
+              wall_s: float, sources: ControllerSources | None = None) -> RunSummary:
+    """Judge a finished simulated run by the world's ground truth.
+
+    `sources` says where its controllers came from (solved, store, memory); None: not counted.
+    """
     truth = sim.truth()
     offsets = displacements_m(sim.config.motions, len(sim.config.obstacles), truth[:, 0])
     rows = np.minimum(np.asarray(stats.t_ns, dtype=np.int64) // round(sim.config.dt_s * NS_PER_S),
@@ -329,7 +340,7 @@ def summarize(spec: SimRunSpec, scenario: Scenario, sim: SimWorld, stats: RunSta
         velocity=truth[rows, 1 + TR_NU : 1 + TR_NU + 3].reshape(-1, 3), wall_s=wall_s,
         log=None if spec.out_dir is None else str(spec.out_dir),
         nominal_s=1.0 / spec.loop.loop_hz,
-        obstacle_offsets_m=offsets if sim.config.motions else None)
+        obstacle_offsets_m=offsets if sim.config.motions else None, sources=sources)
 
 
 def spec_to_json(spec: SimRunSpec) -> dict[str, Any]:

@@ -17,6 +17,7 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
+from hil.controllers.symbolic import ControllerSources
 from hil.core.arrays import FloatArray
 from hil.core.tracking import TrackingSeries, for_display, tracking_error
 from hil.runs.clearance import hull_clearance_series
@@ -71,7 +72,8 @@ class RunSummary:
             contact.
         hull_contacts: Number of physics steps with the hull touching an obstacle.
         decisions: Symbolic decisions taken.
-        resyntheses: Controllers synthesized and swapped in.
+        resyntheses: Controllers synthesized and swapped in (the first one included),
+            whatever their source: solved, read from the store or served from memory.
         synthesis_mean_s: Mean synthesis time (s).
         synthesis_max_s: Largest synthesis time (s).
         not_winning_decisions: Decisions taken outside the winning set.
@@ -108,6 +110,9 @@ class RunSummary:
             winning, the vessel kept in the safety set); docking_lost the episodes.
         feed_rejections: On the vessel: per sensor topic with refused messages, what it
             delivered and refused by reason, with the fix (``FeedHealth.describe``).
+        sources: Where the run's controllers came from (solved: the fixed point ran;
+            store: read from the solved-controller store; memory: this process had
+            solved the layout before); None when not counted (then only `resyntheses`).
     """
 
     scenario: str
@@ -147,6 +152,7 @@ class RunSummary:
     staying_decisions: int = 0
     docking_lost: int = 0
     feed_rejections: tuple[str, ...] = ()
+    sources: ControllerSources | None = None
 
     def to_json(self) -> str:
         """Return the summary as one line of JSON (NaN and inf as null)."""
@@ -165,6 +171,17 @@ class RunSummary:
         data["tracking_rms"] = data.pop("tracking")["rms"]
         data["tracking_max_abs"] = clean(list(self.tracking.max_abs))
         return json.dumps(data, sort_keys=True)
+
+    def _controllers_row(self) -> tuple[str, str]:
+        """Return the decisions and controllers row: solves apart from stored and memo hits."""
+        if self.sources is None:
+            return "decisions / re-syntheses", f"{self.decisions} / {self.resyntheses}"
+        src = self.sources
+        return (
+            "decisions / controllers taken",
+            f"{self.decisions} / {self.resyntheses}: {src.solved} solved, "
+            f"{src.store} from the store, {src.memory} from memory",
+        )
 
     def render(self, console: Console | None = None) -> None:
         """Print the summary as a table (rich)."""
@@ -185,7 +202,7 @@ class RunSummary:
         table.add_row("docking time", docking, "2.67 min (1.71-3.66)")
         table.add_row("min hull clearance to real obstacles", f"{self.min_clearance_m:.3f} m", "-")
         table.add_row("hull contacts", str(self.hull_contacts), "0")
-        table.add_row("decisions / re-syntheses", f"{self.decisions} / {self.resyntheses}", "-")
+        table.add_row(*self._controllers_row(), "-")
         if self.moving_obstacles or self.obstacle_stale_stops:
             table.add_row("moving obstacles / stale-report stops",
                           f"{self.moving_obstacles} / {self.obstacle_stale_stops}", "-")
@@ -253,6 +270,7 @@ def summarize_run(
     nominal_s: float = 0.05,
     obstacle_offsets_m: FloatArray | None = None,
     feed_rejections: tuple[str, ...] = (),
+    sources: ControllerSources | None = None,
 ) -> RunSummary:
     """Summarize a finished run.
 
@@ -272,6 +290,7 @@ def summarize_run(
             each pose of `trajectory` (m), shape (n_obstacles, N, 2); None: the obstacles
             stay put.
         feed_rejections: What the ROS backend refused, per topic (vessel runs).
+        sources: Where the run's controllers came from; None when not counted.
     """
     clearance = hull_clearance_series(scenario, trajectory, obstacle_offsets_m)
     moving = 0 if obstacle_offsets_m is None else int(
@@ -318,6 +337,7 @@ def summarize_run(
         staying_decisions=stats.staying_decisions,
         docking_lost=stats.docking_lost,
         feed_rejections=feed_rejections,
+        sources=sources,
     )
 
 

@@ -31,6 +31,7 @@ failed run, reported with its spec).
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 import tomllib
@@ -171,19 +172,24 @@ def parse_sweep(data: dict[str, Any]) -> Sweep:
              "start_velocities", "gains", "disturbances"}
     unknown = sorted(set(data) - known)
     if unknown:
-        raise SweepError(f"unknown sweep keys {unknown!r}; known: {sorted(known)!r}")
+        raise SweepError(f"unknown sweep key(s) {unknown!r}; allowed: {', '.join(sorted(known))}")
     mode = data.get("mode", "grid")
     if mode not in ("grid", "random"):
-        raise SweepError(f"mode must be 'grid' or 'random', got {mode!r}")
+        raise SweepError(f"key 'mode' must be 'grid' or 'random', got {mode!r}")
     samples = data.get("samples", 0 if mode == "grid" else None)
     if mode == "random" and (not isinstance(samples, int) or samples < 1):
-        raise SweepError(f"a random sweep needs samples >= 1, got {samples!r}")
+        raise SweepError(f"key 'samples' must be a whole number >= 1 in a random sweep, "
+                         f"got {samples!r}")
     seed = data.get("seed", 0)
     max_duration = data.get("max_duration_s", 600.0)
-    if not isinstance(seed, int) or not isinstance(max_duration, int | float) \
+    if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
+        hint = " (the runs' seeds are key 'seeds')" if isinstance(seed, list | dict) else ""
+        raise SweepError(f"key 'seed' (of the random draw) must be a whole number >= 0, "
+                         f"got {seed!r}{hint}")
+    if not isinstance(max_duration, int | float) or isinstance(max_duration, bool) \
             or not max_duration > 0:
-        raise SweepError(f"seed must be an integer and max_duration_s positive, "
-                         f"got {seed!r} and {max_duration!r}")
+        raise SweepError(f"key 'max_duration_s' must be a positive number of seconds, "
+                         f"got {max_duration!r}")
     boxes = mode == "random"
     defaults: dict[str, list[Any]] = {"scenarios": ["paper"], "seeds": [0],
                                       "starts": ["default"], "start_velocities": ["rest"],
@@ -222,13 +228,13 @@ def _axis(data: dict[str, Any], key: str, default: list[Any],
           parse: Callable[[Any], Any]) -> tuple[Any, ...]:
     values = data.get(key, default)
     if not isinstance(values, list) or not values:
-        raise SweepError(f"{key} must be a non-empty list, got {values!r}")
+        raise SweepError(f"key {key!r} must be a non-empty list, got {values!r}")
     return tuple(parse(v) for v in values)
 
 
 def _scenario(value: object) -> str:
     if not isinstance(value, str) or not value:
-        raise SweepError(f"scenarios must be names or paths, got {value!r}")
+        raise SweepError(f"key 'scenarios' must hold names or paths, got {value!r}")
     return value
 
 
@@ -237,11 +243,12 @@ def _seeds(value: object) -> tuple[int, ...]:
         first, count = value.get("first", 0), value.get("count")
         if set(value) - {"first", "count"} or not isinstance(first, int) \
                 or not isinstance(count, int) or count < 1:
-            raise SweepError(f"seeds must be a list or {{ first = N, count = M }}, got {value!r}")
+            raise SweepError(f"key 'seeds' must be a list or {{ first = N, count = M }}, "
+                             f"got {value!r}")
         return tuple(range(first, first + count))
     if not isinstance(value, list) or not value or not all(
             isinstance(v, int) and not isinstance(v, bool) for v in value):
-        raise SweepError(f"seeds must be a non-empty list of integers, got {value!r}")
+        raise SweepError(f"key 'seeds' must be a non-empty list of integers, got {value!r}")
     return tuple(value)
 
 
@@ -252,25 +259,31 @@ def _triple(value: object, key: str, none: str, third: Callable[[float], float],
         return None
     if isinstance(value, dict) and set(value) == {"low", "high"}:
         if not boxes:
-            raise SweepError(f"{key}: a box {value!r} needs mode = 'random'")
+            raise SweepError(f"key {key!r}: a box {value!r} needs mode = 'random'")
         low = _triple(value["low"], key, none, third, False)
         high = _triple(value["high"], key, none, third, False)
         if low is None or high is None:
-            raise SweepError(f"{key}: a box needs two triples, got {value!r}")
+            raise SweepError(f"key {key!r}: a box needs two triples, got {value!r}")
         return (low, high)  # type: ignore[return-value]
     if not (isinstance(value, list) and len(value) == 3 and all(
             isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
             for v in value)):
-        raise SweepError(f"{key} values must be {none!r} or 3 finite numbers, got {value!r}")
+        raise SweepError(f"key {key!r}: values must be {none!r} or 3 finite numbers, "
+                         f"got {value!r}")
     return (float(value[0]), float(value[1]), third(float(value[2])))
 
 
 def _table(kind: type[Any], value: object, key: str) -> Any:
     if not isinstance(value, dict):
-        raise SweepError(f"{key} must be tables, got {value!r}")
+        raise SweepError(f"key {key!r} must hold tables, got {value!r}")
     if not value:
         return None
+    fields = sorted(f.name for f in dataclasses.fields(kind) if f.init)
+    unknown = sorted(set(value) - set(fields))
+    if unknown:
+        raise SweepError(f"key {key!r}: unknown field(s) {unknown!r} in {value!r}; "
+                         f"allowed ({kind.__name__}): {', '.join(fields)}")
     try:
         return from_jsonable(kind, value)
     except (CodecError, ValueError) as err:
-        raise SweepError(f"{key}: {value!r} is no {kind.__name__}: {err}") from err
+        raise SweepError(f"key {key!r}: {err}") from err

@@ -79,6 +79,13 @@ def predicted_arcs(
     return out
 
 
+def obstacle_names(scenario: Scenario | None, count: int) -> list[str]:
+    """Return the names of `count` drawn obstacles: the scenario's, else O1, O2, ..."""
+    if scenario is not None and len(scenario.obstacles) == count:
+        return [o.name for o in scenario.obstacles]
+    return [f"O{n + 1}" for n in range(count)]
+
+
 def inflated_outlines(scenario: Scenario, layout: Layout) -> tuple[FloatArray, ...]:
     """Return the inflated obstacles of a layout, each shape (n, 2) in m.
 

@@ -1,8 +1,12 @@
 """A one-page picture of a recorded run, like the paper's Fig. 6-8 (matplotlib, Agg).
 
-Left: the arena as in the paper (x right, y up) with the boundary, the real
-obstacles (filled) and the inflated ones (dashed), the target T1 and the abstract
-target T2, the estimated trajectory, and the hull outline every few seconds.
+Left: the arena as the tank is seen from above, with the boundary, the real
+obstacles (filled, named as in the scenario) and the inflated ones (dashed), the
+target T1 and the abstract target T2, the estimated trajectory from its start to its
+end, and the hull outline every few seconds. The arena frame is NED-like (x north,
+y east, z down), so seen from above x points right and y points DOWN the page
+(:func:`orient_from_above`); a starboard turn (r > 0) is drawn clockwise. The paper
+draws x right, y up: the tank seen from below.
 Right: velocity tracking per axis, commanded (nu_ref) against estimated (nu_hat),
 with yaw rate in deg/s as the paper reports it, and the RMS of the tracking
 error of :mod:`hil.core.tracking` (the figure replay judges) above each axis.
@@ -28,7 +32,7 @@ from hil.bag.run_data import RunData
 from hil.core.arrays import FloatArray
 from hil.core.tracking import for_display
 from hil.scenarios import Hull, Scenario, hull_footprint
-from hil.views.controller_view import inflated_outlines
+from hil.views.controller_view import inflated_outlines, obstacle_names
 
 FIGURE_SIZE_IN = (13.0, 6.5)
 """Figure size (width, height) in inches; the PNG is this times the dpi, in pixels."""
@@ -57,8 +61,89 @@ def _hull_times(t_ns: NDArray[np.int64], every_s: float) -> NDArray[np.intp]:
     return np.asarray(np.clip(idx, 0, len(t_ns) - 1), dtype=np.intp)
 
 
+ARENA_TITLE = "arena seen from above (x north, y east, z down into the page)"
+"""The arena panel's title: the frame and where it is seen from."""
+
+
+def orient_from_above(
+    ax: Axes, x_range_m: tuple[float, float], y_range_m: tuple[float, float]
+) -> None:
+    """Show the arena frame (x north, y east, z down) on `ax` as seen from above.
+
+    x (north) runs to the right and y (east) DOWN the page: with z down into the page
+    the frame stays right-handed on paper, so a heading increasing (a starboard turn,
+    r > 0) is drawn clockwise, as the crew sees the tank from the bank.
+
+    Args:
+        ax: The arena axes; data coordinates are (x, y) in m.
+        x_range_m: The x (north) limits to show (m).
+        y_range_m: The y (east) limits to show (m).
+    """
+    ax.set_xlim(x_range_m[0], x_range_m[1])
+    ax.set_ylim(y_range_m[1], y_range_m[0])  # y (east) grows downward
+    ax.set_aspect("equal")
+    ax.set_xlabel("x, north (m) →")
+    ax.set_ylabel("y, east (m) ↓")
+    ax.set_title(ARENA_TITLE, fontsize=9)
+
+
+def _label_path(ax: Axes, xy: FloatArray) -> None:
+    """Mark and name the start and the end of a path `xy`, shape (N, 2), (x, y) in m."""
+    for (x_m, y_m), marker, text in ((xy[0], "o", "start"), (xy[-1], "s", "end")):
+        ax.plot(x_m, y_m, marker=marker, color="#1f5fbf", ms=6)
+        ax.annotate(
+            text,
+            (x_m, y_m),
+            xytext=(6, 6),
+            textcoords="offset points",
+            fontsize=8,
+            color="#1f5fbf",
+            fontweight="bold",
+        )
+
+
+def _draw_obstacles(ax: Axes, run: RunData, scenario: Scenario | None) -> None:
+    """Draw the newest layout's real (named) and inflated obstacles; the first one dotted."""
+    layouts = run.layouts[-1:]  # the newest layout; moving obstacles: first one dotted
+    if len(run.layouts) > 1:
+        for poly in run.layouts[0].real:
+            x, y = _closed(poly)
+            ax.plot(x, y, color="#c0392b", lw=0.8, ls=":")
+    for layout in layouts:
+        for n, (poly, name) in enumerate(
+            zip(layout.real, obstacle_names(scenario, len(layout.real)), strict=True)
+        ):
+            ax.add_patch(
+                PolygonPatch(
+                    poly,
+                    closed=True,
+                    fc="#e8a09a",
+                    ec="#c0392b",
+                    lw=1.2,
+                    label="obstacle" if n == 0 else None,
+                )
+            )
+            cx, cy = np.asarray(poly).mean(axis=0)
+            ax.text(cx, cy, name, ha="center", va="center", fontsize=9, fontweight="bold")
+        inflated = inflated_outlines(scenario, layout) if scenario is not None else layout.inflated
+        for n, poly in enumerate(inflated):
+            x, y = _closed(poly)
+            ax.plot(
+                x,
+                y,
+                color="#e67e22",
+                lw=1.0,
+                ls="--",
+                label="inflated obstacle" if n == 0 else None,
+            )
+
+
 def draw_arena(ax: Axes, run: RunData, scenario: Scenario | None, hull_every_s: float) -> None:
-    """Draw the arena, obstacles, targets, trajectory and hull outlines on `ax`."""
+    """Draw the arena, obstacles, targets, trajectory and hull outlines on `ax`.
+
+    The arena is seen from above (:func:`orient_from_above`); obstacles and the
+    target are named, the path's start and end marked.
+    """
     if scenario is not None:
         x, y = _closed(scenario.arena.vertices())
         ax.plot(x, y, color="0.3", lw=1.5)
@@ -72,42 +157,16 @@ def draw_arena(ax: Axes, run: RunData, scenario: Scenario | None, hull_every_s: 
                 label="target T1",
             )
         )
+        tx, ty = scenario.target.shape.vertices().mean(axis=0)
+        ax.text(tx, ty, "T1", ha="center", va="center", fontsize=8, color="#2a9d48")
         x, y = _closed(scenario.abstract_target().vertices())
         ax.plot(x, y, color="#2a9d48", lw=1.0, ls="--", label="abstract target T2")
-    layouts = run.layouts[-1:]  # the newest layout; moving obstacles: first one dotted
-    if len(run.layouts) > 1:
-        for poly in run.layouts[0].real:
-            x, y = _closed(poly)
-            ax.plot(x, y, color="#c0392b", lw=0.8, ls=":")
-    for layout in layouts:
-        for n, poly in enumerate(layout.real):
-            ax.add_patch(
-                PolygonPatch(
-                    poly,
-                    closed=True,
-                    fc="#e8a09a",
-                    ec="#c0392b",
-                    lw=1.2,
-                    label="obstacle" if n == 0 else None,
-                )
-            )
-        inflated = inflated_outlines(scenario, layout) if scenario is not None else layout.inflated
-        for n, poly in enumerate(inflated):
-            x, y = _closed(poly)
-            ax.plot(
-                x,
-                y,
-                color="#e67e22",
-                lw=1.0,
-                ls="--",
-                label="inflated obstacle" if n == 0 else None,
-            )
+    _draw_obstacles(ax, run, scenario)
     path = run.estimate if len(run.estimate) else run.pose
     xy = path.values[:, :2]
     if len(xy):
         ax.plot(xy[:, 0], xy[:, 1], color="#1f5fbf", lw=1.6, label="trajectory (estimate)")
-        ax.plot(*xy[0], marker="o", color="#1f5fbf", ms=6)
-        ax.plot(*xy[-1], marker="s", color="#1f5fbf", ms=6)
+        _label_path(ax, xy)
     hull = scenario.hull if scenario is not None else Hull()
     for n, i in enumerate(_hull_times(path.t_ns, hull_every_s)):
         x_m, y_m, psi = path.values[i, :3]
@@ -125,11 +184,13 @@ def draw_arena(ax: Axes, run: RunData, scenario: Scenario | None, hull_every_s: 
         bow = np.array([x_m, y_m]) + 0.5 * hull.length_m * np.array([math.cos(psi), math.sin(psi)])
         ax.plot([x_m, bow[0]], [y_m, bow[1]], color="#34495e", lw=0.8)
     if scenario is not None:
-        ax.set_xlim(scenario.x_range_m[0] - 0.2, scenario.x_range_m[1] + 0.2)
-        ax.set_ylim(scenario.y_range_m[0] - 0.2, scenario.y_range_m[1] + 0.2)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
+        x_lim = (scenario.x_range_m[0] - 0.2, scenario.x_range_m[1] + 0.2)
+        y_lim = (scenario.y_range_m[0] - 0.2, scenario.y_range_m[1] + 0.2)
+    else:  # what was drawn, still seen from above
+        ax.autoscale_view()
+        (x0, x1), (y0, y1) = ax.get_xlim(), sorted(ax.get_ylim())
+        x_lim, y_lim = (x0, x1), (y0, y1)
+    orient_from_above(ax, x_lim, y_lim)
     ax.grid(True, lw=0.3, alpha=0.5)
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=3, fontsize=8, frameon=False)
 

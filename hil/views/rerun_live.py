@@ -18,7 +18,7 @@ from hil.replay.intervals import budget_class, envelope_bound
 from hil.runtime.protocols import RunLog
 from hil.scenarios import Scenario
 from hil.views.blueprint import blueprint
-from hil.views.controller_view import inflated_outlines
+from hil.views.controller_view import inflated_outlines, obstacle_names
 from hil.views.rerun_export import start_viewer
 from hil.views.rerun_style import (
     APPLICATION_ID,
@@ -193,6 +193,13 @@ class LiveRerunLog:
         inflated = inflated_outlines(self.scenario, drawn)
         self.rec.log(
             "world/arena/obstacles/inflated", rr.LineStrips3D([closed_strip(p) for p in inflated])
+        )
+        self.rec.log(
+            "world/arena/obstacles/names",
+            rr.Points3D(
+                [[*p.mean(axis=0), 0.0] for p in real],
+                labels=obstacle_names(self.scenario, len(real)),
+            ),
         )
 
     def event(self, t_ns: int, level: EventLevel, code: str, text: str) -> None:

@@ -25,7 +25,9 @@ TIMELINE = "run_time"
 APPLICATION_ID = "hil"
 
 AXES = (("surge", "u (m/s)"), ("sway", "v (m/s)"), ("yaw_rate", "r (rad/s)"))
-_Z_ARCS = 0.01
+WORLD_COORDINATES = rr.ViewCoordinates.RIGHT_HAND_Z_DOWN
+"""The arena frame as Rerun sees it: x north, y east, z down (NED-like)."""
+_Z_ARCS = -0.01  # z is down: the predicted arcs float just above the arena lines
 _ARC_POINTS = 16
 
 GREY = (150, 150, 150)

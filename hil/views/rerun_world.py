@@ -19,11 +19,18 @@ from hil.core.arrays import FloatArray
 from hil.core.geometry import yaw_quaternions
 from hil.core.records import Decision
 from hil.scenarios import Hull, Scenario
-from hil.views.controller_view import ControllerView, WinningSlice, inflated_outlines
+from hil.views.controller_view import (
+    ControllerView,
+    WinningSlice,
+    inflated_outlines,
+    obstacle_names,
+)
 from hil.views.rerun_style import (
     BLUE,
     GREEN,
     GREY,
+    RED,
+    WORLD_COORDINATES,
     closed_strip,
     decision_strips,
     rectangle_xy,
@@ -32,17 +39,33 @@ from hil.views.rerun_style import (
     time_column,
 )
 
-_Z_GRID = -0.02  # the winning set lies just under the arena lines
+_Z_GRID = 0.02  # z is down: the winning set lies just under the arena lines
+_Z_MARK = -0.05  # z is down: replay markers float above the arcs
+_AXIS_M = 1.0  # length of the drawn x (north) and y (east) arrows (m)
 
 
 def log_arena(rec: rr.RecordingStream, scenario: Scenario | None) -> int:
-    """Log the boundary and the targets T1 (real) and T2 (abstract), static.
+    """Log the frame, the boundary, the axes and the targets T1 (real) and T2 (abstract), static.
 
-    Without a scenario (an unknown one) nothing is drawn.
+    The arena frame is NED-like: x north, y east, z down (``RIGHT_HAND_Z_DOWN``); the
+    blueprint looks at it from above (:func:`hil.views.blueprint.top_down_eye`).
+    Without a scenario (an unknown one) only the frame is logged.
     """
-    rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+    rec.log("world", WORLD_COORDINATES, static=True)
     if scenario is None:
-        return 0
+        return 1
+    corner = [scenario.x_range_m[0], scenario.y_range_m[0], 0.0]
+    rec.log(
+        "world/arena/axes",
+        rr.Arrows3D(
+            origins=[corner, corner],
+            vectors=[[_AXIS_M, 0.0, 0.0], [0.0, _AXIS_M, 0.0]],
+            labels=["x north", "y east"],
+            colors=[RED, GREEN],
+            show_labels=True,
+        ),
+        static=True,
+    )
     boundary = rectangle_xy(scenario.x_range_m, scenario.y_range_m)
     rec.log(
         "world/arena/boundary",
@@ -52,7 +75,11 @@ def log_arena(rec: rr.RecordingStream, scenario: Scenario | None) -> int:
     rec.log(
         "world/arena/target/T1",
         rr.LineStrips3D(
-            [closed_strip(scenario.target.shape.vertices())], colors=[GREEN], radii=[0.02]
+            [closed_strip(scenario.target.shape.vertices())],
+            colors=[GREEN],
+            radii=[0.02],
+            labels=["T1"],
+            show_labels=True,
         ),
         static=True,
     )
@@ -63,7 +90,7 @@ def log_arena(rec: rr.RecordingStream, scenario: Scenario | None) -> int:
         ),
         static=True,
     )
-    return 3
+    return 5
 
 
 def log_obstacles(rec: rr.RecordingStream, run: RunData, scenario: Scenario | None) -> int:
@@ -84,7 +111,22 @@ def log_obstacles(rec: rr.RecordingStream, run: RunData, scenario: Scenario | No
             for layout in run.layouts
         ]
         rows += send_strips(rec, "world/arena/obstacles/inflated", t_ns, inflated)
-    return rows
+    return rows + _log_obstacle_names(rec, run, scenario)
+
+
+def _log_obstacle_names(rec: rr.RecordingStream, run: RunData, scenario: Scenario | None) -> int:
+    """Name each layout's obstacles at their centres (the scenario's names, else O1, ...)."""
+    centres = [[[*np.asarray(p).mean(axis=0), 0.0] for p in layout.real] for layout in run.layouts]
+    names = [obstacle_names(scenario, len(layout.real)) for layout in run.layouts]
+    rec.send_columns(
+        "world/arena/obstacles/names",
+        indexes=[time_column(np.array([layout.t_ns for layout in run.layouts], dtype=np.int64))],
+        columns=rr.Points3D.columns(
+            positions=[c for row in centres for c in row],
+            labels=[n for row in names for n in row],
+        ).partition([len(row) for row in centres]),
+    )
+    return len(run.layouts)
 
 
 # ---------------------------------------------------------------- the vessel
@@ -148,7 +190,18 @@ def log_trajectory(rec: rr.RecordingStream, run: RunData) -> int:
         return 0
     path = np.column_stack([run.estimate.values[:, :2], np.zeros(len(run.estimate))])
     rec.log("world/trajectory", rr.LineStrips3D([path], colors=[BLUE], radii=[0.006]), static=True)
-    return 1
+    rec.log(
+        "world/trajectory/ends",
+        rr.Points3D(
+            [path[0], path[-1]],
+            labels=["start", "end"],
+            colors=[BLUE],
+            radii=[0.05],
+            show_labels=True,
+        ),
+        static=True,
+    )
+    return 2
 
 
 def log_decisions(rec: rr.RecordingStream, run: RunData, tau_s: float) -> int:
@@ -205,7 +258,9 @@ def log_replayed_decisions(
         rec.send_columns(
             "world/replay/differs",
             indexes=[time_column(np.array([t_ns[i] for i in where], dtype=np.int64))],
-            columns=rr.Points3D.columns(positions=[[*replayed[i].state[:2], 0.05] for i in where]),
+            columns=rr.Points3D.columns(
+                positions=[[*replayed[i].state[:2], _Z_MARK] for i in where]
+            ),
         )
         text = [
             f"decision {i} at t={t_ns[i] / 1e9:.2f} s differs: replayed chosen "

@@ -73,7 +73,7 @@ def test_judge_refuses_a_truth_on_another_clock(
             writer.writerow([int(t_ns) + 1_700_000_000 * NS_PER_S, x, y, psi])
     assert main(["judge", str(log), "--truth", str(moved)]) == 2
     last = capsys.readouterr().err.strip().splitlines()[-1]
-    assert last.startswith("hil judge: ")
+    assert last.startswith("hil judge: error: ")
     assert "not the same clock" in last
 
 

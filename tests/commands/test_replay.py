@@ -92,7 +92,7 @@ def test_missing_log_is_one_line_and_exit_2(
 ) -> None:
     assert run_replay(str(tmp_path / "nope")) == 2
     err = capsys.readouterr().err
-    assert f"hil replay: {tmp_path / 'nope'}: " in err
+    assert f"hil replay: error: {tmp_path / 'nope'}: " in err
     assert "does not exist" in err
     assert "Traceback" not in err
 
@@ -114,7 +114,7 @@ def test_foreign_log_is_one_line_and_exit_2(name: str, capsys: pytest.CaptureFix
     before = tree_digest(path)
     assert run_replay(str(path)) == 2
     err = capsys.readouterr().err
-    lines = [line for line in err.splitlines() if line.startswith("hil replay:")]
+    lines = [line for line in err.splitlines() if line.startswith("hil replay: error: ")]
     assert len(lines) == 1
     assert "Traceback" not in err
     assert "internal error" not in err
@@ -298,7 +298,7 @@ def test_non_bags_are_skipped_and_nothing_to_replay_exits_2(
     assert out.strip().splitlines()[-1].startswith("1 log(s): no regression")
     assert run_replay(str(logs / "README.md")) == 2
     out, err = capsys.readouterr()
-    assert "hil replay: no bag among 1 argument(s)" in err
+    assert "hil replay: error: no bag among 1 argument(s)" in err
     assert out.strip().splitlines()[-1] == "0 log(s): ERROR: no log to replay"
 
 
@@ -309,7 +309,7 @@ def test_unreadable_wins_over_regression_and_both_are_reported(
     assert run_replay(str(copy), str(tmp_path / "missing"), "--no-stack") == 2
     out, err = capsys.readouterr()
     assert f"{copy}: FAIL" in out
-    assert f"hil replay: {tmp_path / 'missing'}: " in err
+    assert f"hil replay: error: {tmp_path / 'missing'}: " in err
     assert out.strip().splitlines()[-1] == "2 log(s): ERROR: some logs could not be replayed"
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -25,3 +26,30 @@ def test_progress_shows_the_log_and_its_step() -> None:
         assert task.description == "run-a: decisions"
         progress.done()
         assert task.completed == 1
+
+
+def test_a_replay_in_this_process_shows_each_log_and_its_steps(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from hil.cli import main
+
+    shown: list[tuple[str, str]] = []
+    original = ReplayProgress.step
+
+    def step(self: ReplayProgress, log: Path) -> Callable[[str], None]:
+        show = original(self, log)
+
+        def record(name: str) -> None:
+            shown.append((log.name, name))
+            show(name)
+
+        return record
+
+    monkeypatch.setattr(ReplayProgress, "step", step)
+    log = Path(__file__).parents[2] / "logs" / "coarse-default-seed0"
+    assert main(["replay", str(log), "--no-stack"]) == 0
+    assert "PASS" in capsys.readouterr().out
+    steps = [name for where, name in shown if where == log.name]
+    assert steps[0] == "load"
+    assert {"decisions", "tracking", "contract"} <= set(steps)
+    assert "stack" not in steps  # --no-stack: the step shown is the step made

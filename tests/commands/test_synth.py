@@ -85,7 +85,7 @@ def test_synth_prints_a_report_and_json(tmp_path: Path, capsys: pytest.CaptureFi
 
 def test_synth_refuses_a_start_outside_the_grid(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["synth", "coarse", "--start=40,0,0"]) == 2
-    assert "--start 40,0,0 lies outside the grid" in capsys.readouterr().err
+    assert "hil synth: error: --start 40,0,0 lies outside the grid" in capsys.readouterr().err
 
 
 def test_synth_refuses_a_target_covered_by_an_inflated_obstacle(
@@ -113,3 +113,70 @@ def test_synth_refuses_a_bad_scenario(tmp_path: Path, capsys: pytest.CaptureFixt
     )
     assert main(["synth", str(path)]) == 2
     assert "timing.'tau_s'" in capsys.readouterr().err
+
+
+def _small(tmp_path: Path) -> str:
+    """A coarse scenario on a 10-cm, 30-heading grid: a solve of well under a second."""
+    text = COARSE.read_text(encoding="utf-8")
+    small = text.replace("cell_m = [0.05, 0.05]", "cell_m = [0.1, 0.1]").replace(
+        "heading_cells = 60", "heading_cells = 30"
+    )
+    assert small != text
+    path = tmp_path / "small.toml"
+    path.write_text(small, encoding="utf-8")
+    return str(path)
+
+
+def test_synth_solves_once_by_default_and_says_each_stage(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    scenario = _small(tmp_path)
+    main(["synth", scenario, "--json", "--cache-dir", str(tmp_path)])
+    captured = capsys.readouterr()
+    summary = json.loads(captured.out.strip().splitlines()[-1])
+    assert summary["synthesis_runs"] == 1
+    assert summary["repeat_seconds"] == []
+    assert summary["repeat_median_seconds"] is None
+    synthesis = [line for line in captured.out.splitlines() if line.startswith("synthesis")]
+    assert len(synthesis) == 1
+    assert "median" not in synthesis[0]
+    assert f"{summary['synthesis_seconds']:.3f} s" in synthesis[0]
+    # Each stage is said on stderr as it starts, then what it took; the total last.
+    err = captured.err.splitlines()
+    assert all(line.startswith("hil synth: ") for line in err)
+    assert err[0] == f"hil synth: scenario {scenario}: loading (numpy, numba)"
+    assert any(line.startswith("hil synth: loading the abstraction tables") for line in err)
+    assert "hil synth: tables built in " in captured.err
+    assert any(line.startswith("hil synth: synthesizing on ") for line in err)
+    assert f"hil synth: solved in {summary['first_synthesis_seconds']:.2f} s" in captured.err
+    assert err[-1].startswith("hil synth: done in ")
+    # Again: tables from cache, the controller from the store, and the report says so.
+    main(["synth", scenario, "--cache-dir", str(tmp_path)])
+    again = capsys.readouterr()
+    assert "hil synth: tables read from cache in " in again.err
+    assert "hil synth: controller read from the solved-controller store in " in again.err
+    assert "synthesis    read from the solved-controller store in " in again.out
+
+
+def test_synth_repeat_solves_again_without_caches_and_adds_the_median(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    main(["synth", _small(tmp_path), "--json", "--cache-dir", str(tmp_path), "--repeat", "3"])
+    captured = capsys.readouterr()
+    summary = json.loads(captured.out.strip().splitlines()[-1])
+    assert summary["synthesis_runs"] == 3
+    assert len(summary["repeat_seconds"]) == 2
+    assert summary["repeat_median_seconds"] == sorted(summary["repeat_seconds"])[0] + (
+        sorted(summary["repeat_seconds"])[1] - sorted(summary["repeat_seconds"])[0]
+    ) / 2
+    assert "solved 2 more time(s) without caches: median" in captured.out
+    assert captured.err.count("hil synth: solving again without caches") == 2
+
+
+@pytest.mark.parametrize("value", ["0", "-2", "two"])
+def test_synth_repeat_must_be_a_count(value: str, capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit):
+        main(["synth", "coarse", "--repeat", value])
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    assert last.startswith("hil synth: error: argument --repeat: ")
+    assert repr(value) in last

@@ -234,3 +234,37 @@ def test_pytest_hil_logs_outside_the_repo_collects(tmp_path: Path) -> None:
     )
     assert proc.returncode == 0, proc.stdout[-3000:]
     assert "tests collected" in proc.stdout
+
+
+@pytest.mark.parametrize("command", ["run", "campaign", "sim-vessel"])
+@pytest.mark.parametrize("value", ["-1", "two", "1.5"])
+def test_a_seed_names_the_flag_and_what_it_allows(
+    command: str, value: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    last = _fails_with([command, "--seed", value], capsys, "--seed", ">= 0", repr(value))
+    assert last.startswith(f"hil {command}: error: argument --seed: ")
+
+
+@pytest.mark.parametrize(
+    ("text", "needles"),
+    [
+        ("seed = [0, 1]\n", ("key 'seed'", "[0, 1]", "key 'seeds'")),
+        ("max_duration_s = 0\n", ("key 'max_duration_s'", "positive", "got 0")),
+        ("[[gains]]\nkp = 1\n", ("key 'gains'", "['kp']", "allowed (PidGains)", "kp_per_s")),
+        ("seedz = [1]\n", ("unknown sweep key(s) ['seedz']", "allowed:", "seeds")),
+    ],
+)
+def test_a_sweep_typo_names_the_key_once(
+    tmp_path: Path, text: str, needles: tuple[str, ...], capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = tmp_path / "sweep.toml"
+    path.write_text(text)
+    last = _fails_with(["sweep", str(path)], capsys, *needles)
+    assert last.startswith("hil sweep: error: ")
+    assert last.count(" is no ") == 0
+
+
+def test_synth_errors_name_the_command(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = _scenario(tmp_path, "tau_s = 2.0", "tau_s = -2.0")
+    last = _fails_with(["synth", path], capsys, "timing.'tau_s'")
+    assert last.startswith("hil synth: error: ")

@@ -7,6 +7,7 @@ import math
 import struct
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from hil.bag.run_data import load_run
@@ -15,6 +16,7 @@ from hil.runs.sim_run import SimRunSpec, run_in_sim
 from hil.runtime.settings import LoopConfig
 from hil.views.controller_view import scenario_for
 from hil.views.plot import (
+    ARENA_TITLE,
     DEFAULT_DPI,
     FIGURE_SIZE_IN,
     run_figure,
@@ -67,7 +69,10 @@ def test_hil_plot_writes_a_non_empty_png(
         round(FIGURE_SIZE_IN[0] * DEFAULT_DPI),
         round(FIGURE_SIZE_IN[1] * DEFAULT_DPI),
     )
-    assert f"wrote {out}" in capsys.readouterr().out
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0] == f"hil plot: reading {bag} ..."
+    assert f"hil plot: drawing {out} ..." in lines
+    assert lines[-1].startswith(f"wrote {out} in ")
 
 
 def test_hil_plot_refuses_a_bad_log_in_one_line(
@@ -99,3 +104,44 @@ def test_velocity_panels_show_the_tracking_rms_replay_judges(bag: Path) -> None:
     fig = run_figure(run, None)
     titles = [ax.get_title(loc="left") for ax in fig.axes]
     assert list(text) == [t for t in titles if t.startswith("RMS")]
+
+
+def _signed_area(points: np.ndarray) -> float:
+    """Return the shoelace area of a polyline closed on itself; < 0 is clockwise (y up)."""
+    x, y = points[:, 0], points[:, 1]
+    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+
+
+# North, then a quarter turn to starboard (heading grows), then east: r > 0.
+STARBOARD_ARC = np.array(
+    [[math.sin(a), 1.0 - math.cos(a)] for a in np.linspace(0.0, math.pi / 2, 9)]
+)
+
+
+def test_the_arena_is_drawn_as_seen_from_above(bag: Path) -> None:
+    run = load_run(bag)
+    scenario, _ = scenario_for(run)
+    assert scenario is not None
+    fig = run_figure(run, scenario)
+    arena = fig.axes[0]
+    # The trajectory is plotted in arena data coordinates (x, y), not swapped ...
+    path = next(line for line in arena.get_lines() if line.get_label() == "trajectory (estimate)")
+    np.testing.assert_array_equal(path.get_xydata(), run.estimate.values[:, :2])
+    # ... and on the page a starboard turn comes out clockwise (display y points up).
+    on_page = arena.transData.transform(STARBOARD_ARC)
+    assert _signed_area(on_page) < 0, "a starboard turn must be drawn clockwise (from above)"
+    assert arena.yaxis_inverted()
+    assert not arena.xaxis_inverted()
+    assert "north" in arena.get_xlabel()
+    assert "east" in arena.get_ylabel()
+    assert arena.get_title() == ARENA_TITLE
+    texts = {t.get_text() for t in arena.texts}
+    assert {"start", "end", "T1"} <= texts
+    assert {o.name for o in scenario.obstacles} <= texts
+
+
+def test_a_scenario_less_figure_is_also_seen_from_above(bag: Path) -> None:
+    fig = run_figure(load_run(bag), None)
+    on_page = fig.axes[0].transData.transform(STARBOARD_ARC)
+    assert _signed_area(on_page) < 0
+    assert "O1" in {t.get_text() for t in fig.axes[0].texts}

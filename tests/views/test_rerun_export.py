@@ -181,3 +181,17 @@ def test_a_bare_mcap_file_finds_its_scenario_by_the_decisions_hash(exported: Exp
     scenario, note = scenario_for(bare)
     assert scenario == exported.scenario
     assert "same hash" in note
+
+
+def test_obstacles_axes_and_path_ends_are_named(exported: Exported) -> None:
+    times, labels = column(exported.store, "/world/arena/obstacles/names", "Points3D:labels")
+    assert len(times) == len(exported.run.layouts)
+    assert all(row == [o.name for o in exported.scenario.obstacles] for row in labels)
+    chunks = exported.store.stream().filter(is_static=True).to_chunks()
+    static = {c.entity_path: c.to_record_batch() for c in chunks}
+    assert static["/world/arena/axes"].column("Arrows3D:labels").to_pylist()[0] == [
+        "x north",
+        "y east",
+    ]
+    ends = static["/world/trajectory/ends"]
+    assert ends.column("Points3D:labels").to_pylist()[0] == ["start", "end"]
