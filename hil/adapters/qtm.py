@@ -250,13 +250,21 @@ class QtmPoseSource:
                 lost.set_result(exc)
 
         where = f"{cfg.host}:{cfg.port}"
-        try:
-            conn = await asyncio.wait_for(self._qtm_rt.connect(
-                cfg.host, port=cfg.port, version=cfg.version, on_disconnect=on_disconnect,
-                timeout=cfg.timeout_s, loop=loop), cfg.timeout_s)
-        except TimeoutError:
-            conn = None
-        if conn is None:
+        # qtm-rt's connect() waits for the version's answer without a timeout, and on past
+        # a link that QTM closes: race it against the timeout and the link.
+        connecting: asyncio.Future[Any] = asyncio.ensure_future(self._qtm_rt.connect(
+            cfg.host, port=cfg.port, version=cfg.version, on_disconnect=on_disconnect,
+            timeout=cfg.timeout_s, loop=loop))
+        await asyncio.wait([connecting, lost], timeout=cfg.timeout_s,
+                           return_when=asyncio.FIRST_COMPLETED)
+        conn = None
+        if not connecting.done():
+            connecting.cancel()
+        elif connecting.exception() is None:
+            conn = connecting.result()
+        if conn is None or lost.done():
+            if conn is not None:
+                _disconnect(conn)
             self._event(EventLevel.WARN, "qtm_connect_failed",
                         f"cannot connect to QTM at {where}", connect_failures=1)
             return False
@@ -302,6 +310,8 @@ class QtmPoseSource:
         await asyncio.wait([lost, stopping], return_when=asyncio.FIRST_COMPLETED)
         stopping.cancel()
         if lost.done():
+            with self._lock:
+                self._feed.restart()  # no stream: silence is no stall
             self._event(EventLevel.WARN, "qtm_disconnected",
                         f"lost the link to QTM at {where} ({lost.result() or 'closed'})",
                         disconnects=1)

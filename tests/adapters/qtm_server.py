@@ -57,7 +57,7 @@ class Faults:
         drop_frames: Frame numbers never sent.
         clock_jumps_s: (at, jump): from `at` on QTM's timestamps are `jump` later (s).
         disconnect_at_s: Times at which the client's connection is cut (each once).
-        refuse_s: Spans in which connections are closed as soon as they are accepted.
+        refuse_first: This many connections are closed as soon as they are accepted.
     """
 
     nan_s: tuple[tuple[float, float], ...] = ()
@@ -65,7 +65,7 @@ class Faults:
     drop_frames: frozenset[int] = frozenset()
     clock_jumps_s: tuple[tuple[float, float], ...] = ()
     disconnect_at_s: tuple[float, ...] = ()
-    refuse_s: tuple[tuple[float, float], ...] = ()
+    refuse_first: int = 0
 
 
 def _inside(t_s: float, spans: Sequence[tuple[float, float]]) -> bool:
@@ -233,6 +233,11 @@ class QtmTestServer:
     def __exit__(self, *exc: object) -> None:
         self.stop()
 
+    @property
+    def start_monotonic_s(self) -> float | None:
+        """`time.monotonic()` at server time 0; None before the first ``streamframes``."""
+        return self._start
+
     def now_s(self) -> float:
         """Return server time: s since the first ``streamframes`` (0 before it)."""
         return 0.0 if self._start is None else time.monotonic() - self._start
@@ -264,7 +269,7 @@ class QtmTestServer:
         await self._server.wait_closed()
 
     async def _client(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
-        if _inside(self.now_s(), self.faults.refuse_s):
+        if self.log.refused < self.faults.refuse_first:
             self.log.refused += 1
             writer.close()
             return
