@@ -23,7 +23,7 @@ import contextlib
 import math
 import threading
 from collections.abc import Callable, Coroutine
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from hil.adapters.frames import ArenaTransform
@@ -36,6 +36,7 @@ from hil.adapters.qtm_feed import (
     body_index,
     yaw_from_rotation_matrix,
 )
+from hil.core.config import check_keys, from_table
 from hil.core.records import Event, EventLevel
 from hil.core.samples import Frame, PoseSample
 
@@ -92,6 +93,31 @@ class QtmConfig:
         return "allframes" if self.rate_hz is None else f"frequency:{self.rate_hz}"
 
 
+TABLE_KEYS = frozenset({"host", "port", "body", "rate_hz", "version", "timeout_s",
+                        "backoff_initial_s", "backoff_max_s", "stall_s", "clock"})
+"""Keys of the vessel config's ``[qtm]`` table (``[qtm.clock]`` holds ClockSettings)."""
+
+
+def qtm_config_from_table(data: dict[str, Any], transform: ArenaTransform,
+                          where: str = "qtm.") -> QtmConfig:
+    """Build the qtm backend's settings from the vessel config's ``[qtm]`` table.
+
+    The table holds ``host``, ``body`` (required), ``port`` (22223), ``rate_hz`` (absent:
+    every camera frame) and optionally the timing keys of :class:`QtmConfig`; the lab
+    transform is the vessel config's one (``[ros.transform]``), not repeated here.
+
+    Args:
+        data: The ``[qtm]`` table as read from TOML.
+        transform: The lab NED world and mocap body to the arena.
+        where: Path of the table with a trailing dot, for messages.
+
+    Raises:
+        hil.core.config.ConfigError: An unknown, missing or mistyped key, naming it.
+    """
+    check_keys(data, set(TABLE_KEYS), where)
+    return replace(from_table(QtmConfig, data, where), transform=transform)
+
+
 def _import_qtm_rt() -> Any:
     try:
         import qtm_rt
@@ -110,11 +136,16 @@ class QtmPoseSource:
     Args:
         config: Host, body, rate, transform and timing.
         clock: The run's clock; arrivals are read from it (from the network thread).
+        on_event: Receives the feed's events at each :meth:`poll`, in the polling thread
+            (e.g. ``lambda e: log.event(e.t_ns, e.level, e.code, e.text)``); None keeps
+            them for :meth:`drain_events`.
     """
 
-    def __init__(self, config: QtmConfig, clock: Clock) -> None:
+    def __init__(self, config: QtmConfig, clock: Clock,
+                 on_event: Callable[[Event], None] | None = None) -> None:
         self.config = config
         self._clock = clock
+        self._on_event = on_event
         self._feed = QtmFeed(config.body, config.transform, config.clock, config.stall_s)
         self._lock = threading.Lock()
         self._poses: list[PoseSample] = []
@@ -169,12 +200,18 @@ class QtmPoseSource:
             raise QtmError("the QTM pose source is not open")
 
     def poll(self) -> list[PoseSample]:
-        """Return the arena poses received since the last call, oldest first."""
+        """Return the arena poses received since the last call, oldest first.
+
+        With an ``on_event`` callback, the events since the last call go to it first.
+        """
         self._check_open()
         now_ns = self._clock.now_ns()
         with self._lock:
             self._feed.watch(now_ns)
             out, self._poses = self._poses, []
+        if self._on_event is not None:
+            for event in self.drain_events():
+                self._on_event(event)
         return sorted(out, key=lambda s: s.t_ns)
 
     def drain_events(self) -> list[Event]:

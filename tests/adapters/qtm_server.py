@@ -180,12 +180,14 @@ class QtmTestServer:
         faults: What goes wrong when.
         clock_base_s: QTM's clock reads this at server time 0 (s).
         tilt_rad: Constant (pitch, roll) of the tracked body (rad).
+        stepped: Server time is what :meth:`advance_to` last set (a simulated camera in
+            lockstep with a simulated world), not wall time since the first stream.
     """
 
     def __init__(self, trajectory: Trajectory, body: str = "2", others: Sequence[str] = ("1",),
                  body_index: int = 1, rate_hz: float = 100.0, faults: Faults | None = None,
                  clock_base_s: float = 1000.0,
-                 tilt_rad: tuple[float, float] = (0.0, 0.0)) -> None:
+                 tilt_rad: tuple[float, float] = (0.0, 0.0), stepped: bool = False) -> None:
         self.trajectory = trajectory
         names = list(others)
         names.insert(body_index, body)
@@ -195,6 +197,11 @@ class QtmTestServer:
         self.faults = faults or Faults()
         self.clock_base_s = clock_base_s
         self.tilt_rad = tilt_rad
+        self.stepped = stepped
+        self._stepped_s = 0.0
+        self._step: asyncio.Event | None = None
+        self._sent = threading.Condition()
+        self._next_due_s = -math.inf
         self.log = ServerLog()
         self.port = 0
         self._loop: asyncio.AbstractEventLoop | None = None
@@ -240,7 +247,23 @@ class QtmTestServer:
 
     def now_s(self) -> float:
         """Return server time: s since the first ``streamframes`` (0 before it)."""
+        if self.stepped:
+            return self._stepped_s
         return 0.0 if self._start is None else time.monotonic() - self._start
+
+    def advance_to(self, t_s: float) -> None:
+        """Stepped: move server time to `t_s` (s); the frames due by then go out."""
+        loop, step = self._loop, self._step
+        assert self.stepped
+        assert loop is not None
+        assert step is not None
+        self._stepped_s = t_s
+        loop.call_soon_threadsafe(step.set)
+
+    def wait_sent(self, t_s: float, timeout_s: float = 5.0) -> bool:
+        """Stepped: wait (wall time) until every frame due by `t_s` has been written."""
+        with self._sent:
+            return self._sent.wait_for(lambda: self._next_due_s > t_s, timeout_s)
 
     # -- the server's thread --------------------------------------------------------
 
@@ -251,6 +274,7 @@ class QtmTestServer:
         self._server = loop.run_until_complete(
             asyncio.start_server(self._client, "127.0.0.1", 0))
         self.port = self._server.sockets[0].getsockname()[1]
+        self._step = asyncio.Event()
         ready.set()
         try:
             loop.run_forever()
@@ -357,12 +381,14 @@ class QtmTestServer:
             await self._frames(writer, stream)
 
     async def _frames(self, writer: asyncio.StreamWriter, stream: _Stream) -> None:
-        frame = math.floor(self.now_s() * self.rate_hz) + 1
+        now_frames = self.now_s() * self.rate_hz
+        frame = math.ceil(now_frames) if self.stepped else math.floor(now_frames) + 1
         while not writer.is_closing():
             due_s = frame / self.rate_hz
-            wait_s = due_s - self.now_s()
-            if wait_s > 0:
-                await asyncio.sleep(wait_s)
+            with self._sent:
+                self._next_due_s = due_s
+                self._sent.notify_all()
+            await self._until(due_s)
             if self._cut(due_s, writer):
                 return
             if (frame % stream.every == 0 and frame not in self.faults.drop_frames
@@ -372,6 +398,19 @@ class QtmTestServer:
                 self.log.frames_sent += 1
                 await writer.drain()
             frame += 1
+
+    async def _until(self, due_s: float) -> None:
+        if not self.stepped:
+            wait_s = due_s - self.now_s()
+            if wait_s > 0:
+                await asyncio.sleep(wait_s)
+            return
+        assert self._step is not None
+        while self.now_s() < due_s:
+            self._step.clear()
+            if self.now_s() >= due_s:
+                break
+            await self._step.wait()
 
     def _cut(self, t_s: float, writer: asyncio.StreamWriter) -> bool:
         for at in self.faults.disconnect_at_s:
