@@ -158,3 +158,21 @@ def test_a_lost_body_holds_the_vessel_and_it_docks_after() -> None:
     assert not [p for p in log.poses if 12.0 <= p.t_ns / NS_PER_S < 13.0 - 1e-6]
     stale = [text for _, _, code, text in log.events if "pose" in code and "no pose" in text]
     assert stale
+
+
+def test_drops_and_a_clock_jump_are_events_and_the_stamps_stay_true() -> None:
+    # QTM skips 5 frames and its clock leaps 0.3 s ahead mid-run: drops counted, the offset
+    # re-estimated at the jump's first frame, every pose still the truth at its stamp.
+    drops = frozenset(range(800, 805))
+    summary, log, sim, codes = dock_over_qtm(Faults(drop_frames=drops,
+                                                    clock_jumps_s=((15.0, 0.3),)))
+    assert summary.docked, summary.end_reason
+    assert summary.hull_contacts == 0
+    assert summary.tube_exits == summary.pose_losses == 0
+    assert codes == ["qtm_connected", "qtm_drop", "qtm_clock_jump"]
+    texts = [text for _, _, code, text in log.events if code.startswith("qtm_")]
+    assert texts[1] == "qtm: 5 frame(s) dropped (800..804)"
+    assert texts[2].startswith("qtm: clock offset re-estimated at frame 1500: QTM time leapt")
+    pos_err, yaw_err = pose_errors(log.poses, sim.truth())
+    assert float(pos_err.max()) < 1e-4
+    assert float(yaw_err.max()) < 1e-4
