@@ -287,23 +287,10 @@ class QtmPoseSource:
                 lost.set_result(exc)
 
         where = f"{cfg.host}:{cfg.port}"
-        # qtm-rt's connect() waits for the version's answer without a timeout, and on past
-        # a link that QTM closes: race it against the timeout and the link.
-        connecting: asyncio.Future[Any] = asyncio.ensure_future(self._qtm_rt.connect(
-            cfg.host, port=cfg.port, version=cfg.version, on_disconnect=on_disconnect,
-            timeout=cfg.timeout_s, loop=loop))
-        await asyncio.wait([connecting, lost], timeout=cfg.timeout_s,
-                           return_when=asyncio.FIRST_COMPLETED)
-        conn = None
-        if not connecting.done():
-            connecting.cancel()
-        elif connecting.exception() is None:
-            conn = connecting.result()
-        if conn is None or lost.done():
-            if conn is not None:
-                _disconnect(conn)
+        conn, why = await self._connect(lost, on_disconnect)
+        if conn is None:
             self._event(EventLevel.WARN, "qtm_connect_failed",
-                        f"cannot connect to QTM at {where}", connect_failures=1)
+                        f"cannot connect to QTM at {where}: {why}", connect_failures=1)
             return False
         try:
             index = await self._start_stream(conn, lost)
@@ -317,6 +304,41 @@ class QtmPoseSource:
                     f"streaming body {cfg.body!r} (6D index {index}) from {where}, "
                     f"{cfg.frames}", connects=1)
         return await self._stream_until_lost(conn, lost, where)
+
+    async def _connect(self, lost: asyncio.Future[object],
+                       on_disconnect: Callable[[object], None]) -> tuple[Any, str]:
+        """Open the link and set the protocol version; return (connection or None, why not).
+
+        As qtm-rt's ``connect()`` does, with the classes it builds (QTMProtocol,
+        QRTConnection); but ``connect()`` waits for the version's answer without a timeout,
+        on past a link QTM closed, and leaves the socket open when it fails. Here each step
+        has the timeout, and a failed link is closed.
+        """
+        cfg = self.config
+        loop = asyncio.get_running_loop()
+        protocol_class = self._qtm_rt.protocol.QTMProtocol
+        try:
+            transport, protocol = await asyncio.wait_for(loop.create_connection(
+                lambda: protocol_class(loop=loop, on_disconnect=on_disconnect),
+                cfg.host, cfg.port), cfg.timeout_s)
+        except (OSError, TimeoutError) as err:
+            return None, str(err) or type(err).__name__
+        versioned: asyncio.Future[Any] = asyncio.ensure_future(
+            protocol.set_version(cfg.version))
+        await asyncio.wait([versioned, lost], timeout=cfg.timeout_s,
+                           return_when=asyncio.FIRST_COMPLETED)
+        if not versioned.done():
+            versioned.cancel()
+            why = ("QTM closed the link" if lost.done() else
+                   f"no answer to 'version {cfg.version}' within {cfg.timeout_s:g} s")
+        elif versioned.exception() is not None:
+            why = f"version {cfg.version} refused: {versioned.exception()}"
+        elif lost.done():
+            why = "QTM closed the link"
+        else:
+            return self._qtm_rt.QRTConnection(protocol, timeout=cfg.timeout_s), ""
+        transport.close()
+        return None, why
 
     async def _start_stream(self, conn: Any, lost: asyncio.Future[object]) -> int:
         cfg = self.config

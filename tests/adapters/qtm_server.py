@@ -58,6 +58,7 @@ class Faults:
         clock_jumps_s: (at, jump): from `at` on QTM's timestamps are `jump` later (s).
         disconnect_at_s: Times at which the client's connection is cut (each once).
         refuse_first: This many connections are closed as soon as they are accepted.
+        silent_first: This many connections (after the refused) get no answer at all.
     """
 
     nan_s: tuple[tuple[float, float], ...] = ()
@@ -66,6 +67,7 @@ class Faults:
     clock_jumps_s: tuple[tuple[float, float], ...] = ()
     disconnect_at_s: tuple[float, ...] = ()
     refuse_first: int = 0
+    silent_first: int = 0
 
 
 def _inside(t_s: float, spans: Sequence[tuple[float, float]]) -> bool:
@@ -299,12 +301,15 @@ class QtmTestServer:
             return
         self.log.connections += 1
         self._writers.add(writer)
+        silent = self.log.connections <= self.faults.silent_first
         writer.write(text_packet(TYPE_COMMAND, GREETING))
         stream = _Stream([], 1)
         try:
             while True:
                 size, _kind = HEADER.unpack(await reader.readexactly(HEADER.size))
                 body = await reader.readexactly(size - HEADER.size)
+                if silent:
+                    continue
                 self._command(body.rstrip(b"\0").decode(), writer, stream)
         except (asyncio.IncompleteReadError, ConnectionError):
             pass

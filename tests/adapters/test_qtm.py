@@ -7,6 +7,7 @@ within a few ms of when QTM measured them, and for each fault its event and coun
 
 from __future__ import annotations
 
+import gc
 import itertools
 import math
 import re
@@ -286,3 +287,22 @@ def test_events_go_to_the_callback_at_each_poll() -> None:
         assert source.poll()
         assert source.drain_events() == []
     assert [e.code for e in got] == ["qtm_connected"]
+
+
+def test_a_silent_qtm_times_out_closes_the_socket_and_is_retried() -> None:
+    feed = stream(Faults(silent_first=1), 1.0, timeout_s=0.3)
+    gc.collect()  # an unclosed socket would warn here (an error under pytest's settings)
+    failed = [e.text for e in feed.events if e.code == "qtm_connect_failed"]
+    assert len(failed) == 1
+    assert failed[0].endswith(": no answer to 'version 1.25' within 0.3 s")
+    assert feed.codes()[-1] == "qtm_connected"
+    assert feed.poses
+
+
+def test_a_refused_version_is_a_connect_failure() -> None:
+    feed = stream(Faults(), 0.4, version="0.9")
+    gc.collect()
+    failed = [e.text for e in feed.events if e.code == "qtm_connect_failed"]
+    assert failed
+    assert failed[0].endswith("version 0.9 refused: b'Version NOT supported'")
+    assert feed.poses == []
