@@ -11,9 +11,11 @@ own asyncio loop, so :meth:`QtmPoseSource.poll` never blocks the 20-Hz loop.
 Reactions: a lost body (NaN) gives no sample (the runtime's pose timeout then holds the
 vessel) and an event; frame-number gaps are counted as drops; a jump of QTM's clock
 re-estimates the offset; a lost connection is retried with exponential backoff. Each is an
-:class:`~hil.core.records.Event` with a ``qtm_*`` code, taken with
-:meth:`QtmPoseSource.drain_events` for the run log (``log.event(e.t_ns, e.level, e.code,
-e.text)``), and counted in :attr:`QtmPoseSource.counters`.
+:class:`~hil.core.records.Event` with a ``qtm_*`` code, handed at each poll to the
+source's ``on_event`` callback (for the run log: ``log.event(e.t_ns, e.level, e.code,
+e.text)``) or kept for :meth:`QtmPoseSource.drain_events`, and counted in
+:attr:`QtmPoseSource.counters`. The vessel config's ``[qtm]`` table becomes a
+:class:`QtmConfig` through :func:`qtm_config_from_table`.
 """
 
 from __future__ import annotations
