@@ -34,10 +34,11 @@ def _venv_bin(name: str) -> Path:
 def _extras() -> str:
     # The ROS 2 Jazzy wheels on PyPI exist for x86_64 Linux only; elsewhere (the
     # vessel's aarch64 Pi) the ROS backend uses the system's rclpy. Dask (campaigns on a
-    # cluster) is pure Python: everywhere, so its tests run.
+    # cluster) and qtm-rt (the direct Qualisys feed) are pure Python: everywhere, so
+    # their tests run.
     if platform.system() == "Linux" and platform.machine() == "x86_64":
-        return ".[dev,ros,dask]"
-    return ".[dev,dask]"
+        return ".[dev,ros,dask,qtm]"
+    return ".[dev,dask,qtm]"
 
 
 def ensure_venv() -> None:

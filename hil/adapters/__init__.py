@@ -2,9 +2,11 @@
 
 :mod:`~hil.adapters.interfaces` declares the pose, IMU, obstacle and thruster
 interfaces and the clock; the backends are :mod:`hil.adapters.sim` (the simulated
-world), :mod:`hil.adapters.log` (a recorded run, read by :mod:`hil.bag.run_data`) and
-:mod:`hil.adapters.ros` (rclpy, imported lazily), modules of their own so that importing
-the interfaces pulls in neither numba nor rclpy. May import bag, sim, controllers,
+world), :mod:`hil.adapters.log` (a recorded run, read by :mod:`hil.bag.run_data`),
+:mod:`hil.adapters.ros` (rclpy, imported lazily) and :mod:`hil.adapters.qtm` (the pose
+straight from Qualisys QTM's real-time protocol, qtm-rt imported lazily; its frame
+arithmetic in :mod:`hil.adapters.qtm_feed`), modules of their own so that importing the
+interfaces pulls in neither numba nor rclpy nor qtm-rt. May import bag, sim, controllers,
 model, scenarios and core; the runtime builds on it.
 """
 
