@@ -10,18 +10,19 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
-from dataclasses import dataclass, field
+from contextlib import ExitStack, contextmanager
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
-from hil.adapters.interfaces import ObstacleSource
+from hil.adapters.interfaces import ObstacleSource, PoseSource
 from hil.adapters.obstacles import StaticObstacleSource
+from hil.adapters.qtm import QtmConfig, QtmPoseSource, qtm_config_from_table
 from hil.adapters.ros import RosConfig, RosWorld
 from hil.bag.recorder import Recorder
 from hil.bag.run_info import RunInfo
-from hil.core.config import from_table, load_toml
+from hil.core.config import ConfigError, from_table, load_toml
 from hil.runs.feed_watch import FeedWatch
 from hil.runs.stack_assembly import build_runtime, scenario_hash, synthesizer_for
 from hil.runs.summary import RunSummary, summarize_run
@@ -43,12 +44,16 @@ class VesselConfig:
         runs_dir: Where each run's bag directory is created.
         ros: Topics, QoS, frame transform, domain and clock.
         loop: Loop rate and fault thresholds.
+        qtm: With a ``[qtm]`` table, the pose comes straight from Qualisys Track Manager
+            (:mod:`hil.adapters.qtm`; IMU and thrusters stay on ROS 2); None: the pose
+            topic of ``[ros.topics]``.
     """
 
     scenario: str = "paper"
     runs_dir: str = "runs"
     ros: RosConfig = field(default_factory=RosConfig)
     loop: LoopConfig = field(default_factory=LoopConfig)
+    qtm: QtmConfig | None = None
 
     @staticmethod
     def load(path: str | Path) -> VesselConfig:
@@ -57,7 +62,14 @@ class VesselConfig:
         Raises:
             hil.core.config.ConfigError: Naming the key that is wrong.
         """
-        return from_table(VesselConfig, load_toml(path))
+        table = dict(load_toml(path))
+        qtm = table.pop("qtm", None)
+        config = from_table(VesselConfig, table)
+        if qtm is None:
+            return config
+        if not isinstance(qtm, dict):
+            raise ConfigError(f"qtm: must be a table ([qtm]), got {qtm!r}")
+        return replace(config, qtm=qtm_config_from_table(qtm, config.ros.transform))
 
 
 Progress = Callable[[str], None]
@@ -110,24 +122,48 @@ def _status_every(period_s: float, runtime: Runtime, feeds: FeedWatch,
         done.set()
         thread.join(timeout=1.0)
 
-def _wait_for_pose(ros: RosWorld, topic: str, feeds: FeedWatch,
-                   progress: Progress) -> str | None:
+@dataclass(frozen=True)
+class _PoseFeed:
+    """Where the run's poses come from, for the wait for the first one."""
+
+    where: str
+    wait_first: Callable[[float], bool]
+    waiting: Callable[[], str]
+
+
+def _ros_pose(ros: RosWorld, topic: str, feeds: FeedWatch) -> _PoseFeed:
+    return _PoseFeed(f"on {topic} (ROS domain {ros.domain_id})", ros.pose_source.wait_first,
+                     lambda: feeds.waiting(topic))
+
+
+def _qtm_pose(source: QtmPoseSource) -> _PoseFeed:
+    cfg = source.config
+
+    def waiting() -> str:
+        c = source.counters
+        return (f"{c.connects} connection(s), {c.connect_failures} failed, {c.frames} frames, "
+                f"{c.lost} with body {cfg.body!r} lost: is QTM streaming, with that body?")
+
+    return _PoseFeed(f"from QTM at {cfg.host}:{cfg.port}, body {cfg.body!r}",
+                     source.wait_first, waiting)
+
+
+def _wait_for_pose(pose: _PoseFeed, feeds: FeedWatch, progress: Progress) -> str | None:
     """Block until the first pose arrives; return why it stopped waiting (a signal), or None.
 
     Each new reason the feeds are refused for is said at once (with its fix); every
-    :data:`STATUS_PERIOD_S` a reminder says what the topic delivered.
+    :data:`STATUS_PERIOD_S` a reminder says what the pose feed delivered.
     """
     stopped: list[str] = []
-    progress(f"waiting for pose on {topic} (ROS domain {ros.domain_id})...")
+    progress(f"waiting for pose {pose.where}...")
     waited_s = 0.0
     with stop_on_signals(stopped.append):
-        while not stopped and not ros.pose_source.wait_first(0.1):
+        while not stopped and not pose.wait_first(0.1):
             feeds.poll()
             waited_s += 0.1
             if waited_s >= STATUS_PERIOD_S:
                 waited_s = 0.0
-                progress(f"still waiting for pose on {topic} (ROS domain {ros.domain_id}): "
-                         f"{feeds.waiting(topic)}")
+                progress(f"still waiting for pose {pose.where}: {pose.waiting()}")
     return stopped[0] if stopped else None
 
 
@@ -156,12 +192,20 @@ def run_on_ros(config: VesselConfig, out_dir: Path | None = None,
     with RosWorld(config.ros, obstacles=layout, min_move_m=scenario.tracking.position_tolerance_m,
                   stale_after_s=max(1.0, config.loop.pose_timeout_s)) as ros, Recorder(
             out_dir, RunInfo.current(config.scenario, scenario_hash(scenario), None,
-                                     backend="ros")) as recorder:
+                                     backend="ros")) as recorder, ExitStack() as closing:
         assert ros.clock is not None
         assert ros.thruster_sink is not None
         feeds = FeedWatch(ros, recorder, progress)
         obstacles: ObstacleSource = ros.obstacle_source or StaticObstacleSource(layout)
-        world = World(ros.clock, ros.pose_source, ros.imu_source, obstacles, ros.thruster_sink)
+        pose_source: PoseSource = ros.pose_source
+        pose = _ros_pose(ros, config.ros.topics.pose, feeds)
+        if config.qtm is not None:
+            qtm = closing.enter_context(QtmPoseSource(
+                config.qtm, ros.clock,
+                on_event=lambda e: recorder.event(e.t_ns, e.level, e.code, e.text),
+            ))  # fmt: skip
+            pose_source, pose = qtm, _qtm_pose(qtm)
+        world = World(ros.clock, pose_source, ros.imu_source, obstacles, ros.thruster_sink)
         runtime = build_runtime(scenario, world, recorder, config.loop, synthesizer,
                                 ResynthesisMode.THREAD)
         # Compile and synthesize before the loop starts, so its first ticks keep time.
@@ -174,9 +218,7 @@ def run_on_ros(config: VesselConfig, out_dir: Path | None = None,
             runtime.resynthesizer.submit(obstacles.latest(), runtime.report_ages.next_s())
             runtime.resynthesizer.wait_idle()
         try:
-            stopped = early[0] if early else _wait_for_pose(
-                ros, config.ros.topics.pose, feeds, progress
-            )
+            stopped = early[0] if early else _wait_for_pose(pose, feeds, progress)
             if stopped is not None:
                 runtime.request_stop(f"{stopped} while waiting for pose")
             else:
