@@ -76,7 +76,17 @@ class RosBackendError(RuntimeError):
 
 @dataclass(frozen=True, slots=True)
 class RosTopics:
-    """Topic names; defaults are the lab's (VESSEL.md)."""
+    """Topic names; defaults are the lab's (VESSEL.md).
+
+    Attributes:
+        pose: The motion capture's vessel pose, geometry_msgs/PoseWithCovarianceStamped.
+        imu: The vessel's IMU, sensor_msgs/Imu.
+        tunnel: The tunnel thruster's command, geometry_msgs/Wrench (force.x).
+        port: The port azimuth's command, geometry_msgs/Wrench (force.x, force.y).
+        starboard: The starboard azimuth's command, geometry_msgs/Wrench.
+        obstacles: Tracked obstacle centres (lab frame), geometry_msgs/PoseArray, one pose
+            per obstacle in the scenario's order; "" keeps the scenario's layout fixed.
+    """
 
     pose: str = "/voyager/measurement/pose"
     imu: str = "/voyager/measurement/imu"

@@ -29,8 +29,12 @@ HELP = "run the stack on the vessel over ROS 2 (wall time), recorded; stops clea
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Declare the command's arguments."""
-    parser.add_argument("--config", type=Path, required=True, metavar="FILE",
-                        help="vessel config (TOML): scenario, [ros], [loop], runs_dir")
+    parser.add_argument("--config", type=Path, default=None, metavar="FILE",
+                        help="vessel config (TOML): scenario, [ros], [loop], runs_dir, [qtm] "
+                        "(required unless --print-config)")
+    parser.add_argument("--print-config", action="store_true",
+                        help="print every config key with its value (the defaults, or FILE's "
+                        "with --config) and its meaning, as TOML, and exit")
     parser.add_argument("--out", type=Path, default=None, metavar="DIR",
                         help="bag directory to create (default: under the config's runs_dir)")
     parser.add_argument("--json", action="store_true",
@@ -55,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
     from hil.adapters.ros import RosBackendError
     from hil.bag.errors import ReplayError
     from hil.core.config import ConfigError
-    from hil.runs.vessel_run import VesselConfig, run_on_ros
+    from hil.runs.vessel_run import VesselConfig, config_text, run_on_ros
     from hil.scenarios import ScenarioError
 
     def progress(line: str) -> None:
@@ -64,8 +68,15 @@ def run(args: argparse.Namespace) -> int:
     if args.seconds is not None and not args.check:
         print("hil vessel: error: --seconds needs --check", file=sys.stderr)
         return EXIT_BAD_INPUT
+    if args.config is None and not args.print_config:
+        print("hil vessel: error: the following arguments are required: --config FILE "
+              "(or --print-config for every key with its default)", file=sys.stderr)
+        return EXIT_BAD_INPUT
     try:
-        config = VesselConfig.load(args.config)
+        config = VesselConfig() if args.config is None else VesselConfig.load(args.config)
+        if args.print_config:
+            print(config_text(config), end="")
+            return 0
         if args.check:
             return _check(config, 5.0 if args.seconds is None else args.seconds, progress)
         summary = run_on_ros(config, args.out, progress=progress)

@@ -23,6 +23,7 @@ from hil.adapters.ros import RosConfig, RosWorld
 from hil.bag.recorder import Recorder
 from hil.bag.run_info import RunInfo
 from hil.core.config import ConfigError, from_table, load_toml
+from hil.core.config_doc import config_toml
 from hil.runs.feed_watch import FeedWatch
 from hil.runs.stack_assembly import build_runtime, scenario_hash, synthesizer_for
 from hil.runs.summary import RunSummary, summarize_run
@@ -121,6 +122,15 @@ def _status_every(period_s: float, runtime: Runtime, feeds: FeedWatch,
     finally:
         done.set()
         thread.join(timeout=1.0)
+
+def config_text(config: VesselConfig) -> str:
+    """Return `config` as commented TOML: every key, its value and its meaning.
+
+    The ``[qtm]`` table, absent unless the pose comes from QTM, is printed commented out
+    with its defaults; its transform is ``[ros.transform]``'s, not a key of its own.
+    """
+    return config_toml(config, optional={"qtm": QtmConfig}, skip=frozenset({"qtm.transform"}))
+
 
 @dataclass(frozen=True)
 class _PoseFeed:
