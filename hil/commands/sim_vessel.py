@@ -9,6 +9,8 @@ from __future__ import annotations
 import argparse
 import signal
 import sys
+from dataclasses import replace
+from pathlib import Path
 from types import FrameType
 
 from hil.commands.common import non_negative_int, positive_seconds, start_pose
@@ -18,8 +20,12 @@ HELP = "simulate the vessel as a ROS 2 node on the lab's topics (for DDS tests o
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Declare the command's arguments."""
-    parser.add_argument("scenario", nargs="?", default="paper", metavar="SCENARIO",
-                        help="scenario whose arena and obstacles to simulate (default: paper)")
+    parser.add_argument("scenario", nargs="?", default=None, metavar="SCENARIO",
+                        help="scenario whose arena and obstacles to simulate (default: the "
+                        "config's, else paper)")
+    parser.add_argument("--config", type=Path, default=None, metavar="FILE",
+                        help="a vessel config (as for hil vessel): publish on its [ros.topics] "
+                        "in its pose frame, through its [ros.transform], on its domain")
     parser.add_argument("--seed", type=non_negative_int, default=0, help="seed of the sensor noise")
     parser.add_argument("--start", type=start_pose, default=None, metavar="X,Y,PSI_DEG",
                         help="start pose (m, m, deg); default: right of the arena, bow up")
@@ -28,20 +34,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--clock", action="store_true", help="publish /clock (ROS sim time)")
     parser.add_argument("--duration", type=positive_seconds, default=None, metavar="S",
                         help="stop after this many simulated seconds")
-    parser.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID to use")
+    parser.add_argument("--domain-id", type=int, default=None,
+                        help="ROS_DOMAIN_ID to use (overrides the config's)")
 
 
 def run(args: argparse.Namespace) -> int:
     """Simulate until SIGINT/SIGTERM or the duration; 2 on bad input."""
-    from hil.adapters.ros import RosBackendError, RosConfig, check_domain_id
+    from hil.adapters.ros import RosBackendError, check_domain_id
     from hil.adapters.sim import SimConfig, SimWorld
+    from hil.core.config import ConfigError
     from hil.runs.ros_vessel import SimVesselNode
     from hil.runs.stack_assembly import default_start
+    from hil.runs.vessel_run import VesselConfig
     from hil.runtime.assembly import layout_from_scenario
     from hil.scenarios import ScenarioError, check_start, load_scenario
 
     try:
-        scenario = load_scenario(args.scenario)
+        vessel = VesselConfig() if args.config is None else VesselConfig.load(args.config)
+        scenario = load_scenario(args.scenario or (vessel.scenario if args.config else "paper"))
         start = default_start(scenario) if args.start is None else args.start
         check_start(scenario, *start)
         if args.domain_id is not None:
@@ -51,9 +61,10 @@ def run(args: argparse.Namespace) -> int:
         world = SimWorld(SimConfig(start=start, seed=args.seed,
                                    obstacles=layout_from_scenario(scenario).obstacles),
                          max_duration_s=args.duration + 10.0 if args.duration else 24 * 3600.0)
-        node = SimVesselNode(world, RosConfig(use_sim_time=args.clock, domain_id=args.domain_id),
-                             speed=args.speed)
-    except (ScenarioError, ValueError) as err:
+        domain = vessel.ros.domain_id if args.domain_id is None else args.domain_id
+        ros = replace(vessel.ros, use_sim_time=args.clock, domain_id=domain)
+        node = SimVesselNode(world, ros, speed=args.speed)
+    except (ScenarioError, ConfigError, ValueError) as err:
         print(f"hil sim-vessel: error: {err}", file=sys.stderr)
         return 2
 
