@@ -68,6 +68,25 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+ROS_COMMANDS = ("vessel", "sim-vessel")
+"""The commands that take ROS 2 arguments (``--ros-args -r FROM:=TO -p NAME:=VALUE``)."""
+
+
+def split_ros_args(argv: Sequence[str]) -> tuple[list[str], tuple[str, ...]]:
+    """Split a command line into hil's arguments and the ROS 2 arguments after ``--ros-args``.
+
+    As on any ROS 2 command line, the ROS arguments run to a ``--`` (after which hil's
+    arguments go on) or to the end.
+    """
+    raw = list(argv)
+    if "--ros-args" not in raw:
+        return raw, ()
+    at = raw.index("--ros-args")
+    rest = raw[at + 1 :]
+    end = rest.index("--") if "--" in rest else len(rest)
+    return raw[:at] + rest[end + 1 :], tuple(rest[:end])
+
+
 # Exit status when the reader of our output went away (`hil info LOG | head`), as a
 # process killed by SIGPIPE would report it.
 EXIT_BROKEN_PIPE = 128 + 13
@@ -87,7 +106,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     from hil.commands.common import join_negative_values
 
     parser = build_parser()
-    args = parser.parse_args(join_negative_values(sys.argv[1:] if argv is None else argv))
+    raw, ros_args = split_ros_args(sys.argv[1:] if argv is None else argv)
+    args = parser.parse_args(join_negative_values(raw))
+    args.ros_args = ros_args
+    if ros_args and args.command not in ROS_COMMANDS:
+        print(f"hil {args.command}: error: --ros-args is for {' and '.join(ROS_COMMANDS)} only",
+              file=sys.stderr)
+        return 2
     module: CommandModule = args._module
     try:
         status = module.run(args)

@@ -122,6 +122,10 @@ class RosConfig:
         use_sim_time: Follow `/clock` instead of wall time (tests, simulated vessel).
         pose_frame_id: Expected `header.frame_id` of poses; others are rejected.
         domain_id: ROS_DOMAIN_ID for this world's context; None takes the environment's.
+        ros_args: ROS 2 arguments for this world's context, as after ``--ros-args`` on a
+            command line: remapping rules (``-r /voyager/measurement/pose:=/mocap/pose``)
+            and parameters (``-p use_sim_time:=true``); ``hil vessel ... --ros-args ...``
+            appends its own.
     """
 
     topics: RosTopics = field(default_factory=RosTopics)
@@ -132,6 +136,7 @@ class RosConfig:
     use_sim_time: bool = False
     pose_frame_id: str = "world_ned"
     domain_id: int | None = None
+    ros_args: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if self.qos_depth < 1:
@@ -352,8 +357,13 @@ class RosClock:
         return bool(self._node.get_clock().ros_time_is_active)
 
 
-def init_context(rclpy: Any, context: Any, domain_id: int | None) -> int:
+def init_context(
+    rclpy: Any, context: Any, domain_id: int | None, ros_args: tuple[str, ...] = ()
+) -> int:
     """Initialize an rclpy context on `domain_id`, else on ROS_DOMAIN_ID (default 0).
+
+    `ros_args` (remapping rules and parameters, as after ``--ros-args``) apply to every
+    node of the context.
 
     Returns:
         The domain joined.
@@ -370,9 +380,11 @@ def init_context(rclpy: Any, context: Any, domain_id: int | None) -> int:
     else:
         domain = domain_id
     try:
-        rclpy.init(context=context, domain_id=domain)
+        args = ["hil", "--ros-args", *ros_args] if ros_args else None
+        rclpy.init(args=args, context=context, domain_id=domain)
     except Exception as err:  # rclpy raises its own RCLError types
-        raise RosBackendError(f"cannot start ROS 2 on domain {domain!r}: {err}") from err
+        given = f" with --ros-args {' '.join(ros_args)}" if ros_args else ""
+        raise RosBackendError(f"cannot start ROS 2 on domain {domain!r}{given}: {err}") from err
     return domain
 
 
@@ -435,7 +447,7 @@ class RosWorld:
             ) from err
         cfg = self.config
         self._context = rclpy.Context()
-        self.domain_id = init_context(rclpy, self._context, cfg.domain_id)
+        self.domain_id = init_context(rclpy, self._context, cfg.domain_id, cfg.ros_args)
         overrides = [Parameter("use_sim_time", Parameter.Type.BOOL, cfg.use_sim_time)]
         self._node = rclpy.create_node(
             cfg.node_name, context=self._context, parameter_overrides=overrides

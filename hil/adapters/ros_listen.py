@@ -106,7 +106,7 @@ class RosListener:
                                   f"({err})") from err
         cfg = self.config
         self._context = rclpy.Context()
-        self.domain_id = init_context(rclpy, self._context, cfg.domain_id)
+        self.domain_id = init_context(rclpy, self._context, cfg.domain_id, cfg.ros_args)
         self._node = rclpy.create_node(
             f"{cfg.node_name}_check", context=self._context,
             parameter_overrides=[Parameter("use_sim_time", Parameter.Type.BOOL,

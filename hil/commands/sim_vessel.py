@@ -51,6 +51,7 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         vessel = VesselConfig() if args.config is None else VesselConfig.load(args.config)
+        vessel = vessel.with_ros_args(getattr(args, "ros_args", ()))
         scenario = load_scenario(args.scenario or (vessel.scenario if args.config else "paper"))
         start = default_start(scenario) if args.start is None else args.start
         check_start(scenario, *start)

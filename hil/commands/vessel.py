@@ -74,6 +74,7 @@ def run(args: argparse.Namespace) -> int:
         return EXIT_BAD_INPUT
     try:
         config = VesselConfig() if args.config is None else VesselConfig.load(args.config)
+        config = config.with_ros_args(getattr(args, "ros_args", ()))
         if args.print_config:
             print(config_text(config), end="")
             return 0

@@ -106,7 +106,7 @@ class SimVesselNode:
                                   ) from err
         cfg = self.config
         context = rclpy.Context()
-        domain = init_context(rclpy, context, cfg.domain_id)
+        domain = init_context(rclpy, context, cfg.domain_id, cfg.ros_args)
         node = rclpy.create_node("hil_sim_vessel", context=context)
         try:
             pose_pub = node.create_publisher(PoseWithCovarianceStamped, cfg.topics.pose,

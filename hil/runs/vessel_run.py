@@ -56,6 +56,12 @@ class VesselConfig:
     loop: LoopConfig = field(default_factory=LoopConfig)
     qtm: QtmConfig | None = None
 
+    def with_ros_args(self, ros_args: tuple[str, ...]) -> VesselConfig:
+        """Return this config with `ros_args` (from ``--ros-args``) after ``[ros] ros_args``."""
+        if not ros_args:
+            return self
+        return replace(self, ros=replace(self.ros, ros_args=(*self.ros.ros_args, *ros_args)))
+
     @staticmethod
     def load(path: str | Path) -> VesselConfig:
         """Read and validate a vessel config file.

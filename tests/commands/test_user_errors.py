@@ -268,3 +268,20 @@ def test_synth_errors_name_the_command(tmp_path: Path, capsys: pytest.CaptureFix
     path = _scenario(tmp_path, "tau_s = 2.0", "tau_s = -2.0")
     last = _fails_with(["synth", path], capsys, "timing.'tau_s'")
     assert last.startswith("hil synth: error: ")
+
+
+def test_ros_args_are_split_off_and_refused_where_they_mean_nothing(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    from hil.cli import split_ros_args
+
+    assert split_ros_args(["vessel", "--config", "c.toml", "--ros-args", "-r", "a:=b"]) == (
+        ["vessel", "--config", "c.toml"], ("-r", "a:=b")
+    )
+    assert split_ros_args(["vessel", "--ros-args", "-p", "x:=1", "--", "--json"]) == (
+        ["vessel", "--json"], ("-p", "x:=1")
+    )
+    assert split_ros_args(["synth", "coarse"]) == (["synth", "coarse"], ())
+    assert main(["synth", "coarse", "--ros-args", "-r", "a:=b"]) == 2
+    err = capsys.readouterr().err
+    assert "hil synth: error: --ros-args is for vessel and sim-vessel only" in err

@@ -89,3 +89,24 @@ def test_a_bad_config_is_refused_in_one_line(tmp_path: Path) -> None:
     assert done.returncode == 2
     assert done.stderr.strip().splitlines()[-1].startswith("hil sim-vessel: error:")
     assert "pose" in done.stderr
+
+
+def test_ros_args_remap_the_sim_vessels_topics(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    domain = own_domain(1, 19, offset=2)
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    vessel = subprocess.Popen(
+        [*HIL, "sim-vessel", "coarse", "--domain-id", str(domain), "--duration", "30",
+         "--ros-args", "-r", "/voyager/measurement/pose:=/remapped/pose"],
+        env=dds_env(domain), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        frames = _frames_on(domain, "/remapped/pose", 2.0)
+    finally:
+        stop(vessel)
+    assert vessel.stderr is not None
+    with vessel.stderr:
+        err = vessel.stderr.read()
+    assert len(frames) > 50, err[-2000:]
+    assert set(frames) == {"world_ned"}
