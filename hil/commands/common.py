@@ -17,6 +17,13 @@ import os
 import re
 import sys
 from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # the CLI imports every command for --help: keep rerun out of it
+    from hil.runs.sim_run import LiveView
+    from hil.runtime.protocols import RunLog
+    from hil.scenarios import Scenario
 
 EXIT_DOCKED = 0
 EXIT_NOT_DOCKED = 1
@@ -115,3 +122,15 @@ def missing_display() -> str | None:
     if os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"):
         return None
     return "no display (DISPLAY and WAYLAND_DISPLAY are unset)"
+
+
+def live_rerun(target: str) -> LiveView:
+    """Return the live view that streams a run to a spawned viewer ("spawn") or an .rrd path."""
+    from hil.views.rerun_live import LiveRerunLog  # rerun only when asked for
+
+    save = None if target == "spawn" else Path(target)
+
+    def live(scenario: Scenario, inner: RunLog) -> RunLog:
+        return LiveRerunLog.open(scenario, spawn=save is None, save=save, inner=inner)
+
+    return live

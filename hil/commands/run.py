@@ -18,6 +18,7 @@ from hil.commands.common import (
     EXIT_BAD_INPUT,
     EXIT_DOCKED,
     EXIT_NOT_DOCKED,
+    live_rerun,
     missing_display,
     non_negative_int,
     positive_factor,
@@ -27,7 +28,6 @@ from hil.commands.common import (
 from hil.commands.stages import Stages
 
 if TYPE_CHECKING:
-    from hil.runs.sim_run import LiveView
     from hil.runtime.protocols import RunLog
     from hil.scenarios import Scenario
 
@@ -61,18 +61,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         "the consistency watch should stop the vessel)")
     parser.add_argument("--json", action="store_true",
                         help="end with the summary as one JSON object on the last line")
-
-
-def _live_rerun(target: str) -> LiveView:
-    """Return the live view that streams to a spawned viewer ("spawn") or an .rrd path."""
-    from hil.views.rerun_live import LiveRerunLog  # rerun only when asked for
-
-    save = None if target == "spawn" else Path(target)
-
-    def live(scenario: Scenario, inner: RunLog) -> RunLog:
-        return LiveRerunLog.open(scenario, spawn=save is None, save=save, inner=inner)
-
-    return live
 
 
 def run(args: argparse.Namespace) -> int:
@@ -115,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
                       loop=LoopConfig(max_duration_s=args.max_duration),
                       synthesis_latency_s=args.synthesis_latency or 0.0,
                       pose_noise_scale=args.pose_noise_scale)
-    rerun = None if args.rerun is None else _live_rerun(args.rerun)
+    rerun = None if args.rerun is None else live_rerun(args.rerun)
     what = f"{name}, seed {args.seed}"
     try:
         with console.status(f"starting {what} ...") as status:

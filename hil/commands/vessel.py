@@ -18,6 +18,8 @@ from hil.commands.common import (
     EXIT_BAD_INPUT,
     EXIT_DOCKED,
     EXIT_NOT_DOCKED,
+    live_rerun,
+    missing_display,
     positive_seconds,
 )
 
@@ -32,6 +34,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--config", type=Path, default=None, metavar="FILE",
                         help="vessel config (TOML): scenario, [ros], [loop], runs_dir, [qtm] "
                         "(required unless --print-config)")
+    parser.add_argument("--rerun", nargs="?", const="spawn", default=None, metavar="RRD",
+                        help="stream the run live to Rerun: a spawned viewer, or into RRD")
     parser.add_argument("--print-config", action="store_true",
                         help="print every config key with its value (the defaults, or FILE's "
                         "with --config) and its meaning, as TOML, and exit")
@@ -65,6 +69,10 @@ def run(args: argparse.Namespace) -> int:
     def progress(line: str) -> None:
         print(f"hil vessel: {line}", file=sys.stderr, flush=True)
 
+    if args.rerun == "spawn" and (headless := missing_display()) is not None:
+        print(f"hil vessel: error: --rerun needs a viewer window but there is {headless}: "
+              "stream into a file instead (--rerun run.rrd)", file=sys.stderr)
+        return EXIT_BAD_INPUT
     if args.seconds is not None and not args.check:
         print("hil vessel: error: --seconds needs --check", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -80,7 +88,8 @@ def run(args: argparse.Namespace) -> int:
             return 0
         if args.check:
             return _check(config, 5.0 if args.seconds is None else args.seconds, progress)
-        summary = run_on_ros(config, args.out, progress=progress)
+        live = None if args.rerun is None else live_rerun(args.rerun)
+        summary = run_on_ros(config, args.out, progress=progress, live=live)
     except (ConfigError, ScenarioError, RosBackendError, ReplayError) as err:
         print(f"hil vessel: error: {err}", file=sys.stderr)
         return EXIT_BAD_INPUT

@@ -25,11 +25,13 @@ from hil.bag.run_info import RunInfo
 from hil.core.config import ConfigError, from_table, load_toml
 from hil.core.config_doc import config_toml
 from hil.runs.feed_watch import FeedWatch
+from hil.runs.sim_run import LiveView
 from hil.runs.stack_assembly import build_runtime, scenario_hash, synthesizer_for
 from hil.runs.summary import RunSummary, summarize_run
 from hil.runtime.assembly import layout_from_scenario, warm_up_kernels
 from hil.runtime.loop import Runtime, World
 from hil.runtime.mode import Mode
+from hil.runtime.protocols import RunLog
 from hil.runtime.resynthesis import ResynthesisMode
 from hil.runtime.settings import LoopConfig
 from hil.runtime.signals import stop_on_signals
@@ -184,7 +186,7 @@ def _wait_for_pose(pose: _PoseFeed, feeds: FeedWatch, progress: Progress) -> str
 
 
 def run_on_ros(config: VesselConfig, out_dir: Path | None = None,
-               progress: Progress = _quiet) -> RunSummary:
+               progress: Progress = _quiet, live: LiveView | None = None) -> RunSummary:
     """Run the stack against the vessel over ROS 2 until docked, stopped or timed out.
 
     It synthesizes the first controller, waits for the first pose, then runs the loop,
@@ -194,6 +196,7 @@ def run_on_ros(config: VesselConfig, out_dir: Path | None = None,
         config: The vessel configuration.
         out_dir: The run's bag directory (default: a new one under `runs_dir`).
         progress: Receives one line per step (default: nothing).
+        live: Wraps the run's log for a live view (``hil vessel --rerun``); None: none.
 
     Returns:
         The run's summary, judged on the state estimates (there is no ground truth).
@@ -222,7 +225,8 @@ def run_on_ros(config: VesselConfig, out_dir: Path | None = None,
             ))  # fmt: skip
             pose_source, pose = qtm, _qtm_pose(qtm)
         world = World(ros.clock, pose_source, ros.imu_source, obstacles, ros.thruster_sink)
-        runtime = build_runtime(scenario, world, recorder, config.loop, synthesizer,
+        log: RunLog = recorder if live is None else live(scenario, recorder)
+        runtime = build_runtime(scenario, world, log, config.loop, synthesizer,
                                 ResynthesisMode.THREAD)
         # Compile and synthesize before the loop starts, so its first ticks keep time.
         progress("synthesizing the controller...")

@@ -1,5 +1,7 @@
 """`hil vessel --config` with a ``[qtm]`` table: the pose from QTM, IMU and thrusters on ROS 2.
 
+The same run streams live to Rerun (``--rerun RRD``).
+
 The simulated vessel (`hil sim-vessel`, a process of its own) publishes its true pose on
 the lab's ROS topic; this test bridges it into the QTM RT test server (real TCP on
 loopback), and `hil vessel` takes its pose from that server through the ``qtm`` backend
@@ -19,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from rerun.chunk import RrdReader
 
 from hil.bag.reader import BagReader
 from hil.core.config import ConfigError
@@ -26,6 +29,7 @@ from hil.core.records import Event
 from hil.runs.vessel_run import VesselConfig
 from tests.adapters.qtm_server import QtmTestServer
 from tests.runs.dds_processes import dds_env, own_domain, stop
+from tests.views.rrd_store import rows
 
 pytest.importorskip("rclpy")
 pytest.importorskip("qtm_rt")
@@ -110,7 +114,8 @@ body = "vessel"
 """)
             out = tmp_path / "run"
             stack = subprocess.Popen(
-                [*HIL, "vessel", "--config", str(config), "--out", str(out)],
+                [*HIL, "vessel", "--config", str(config), "--out", str(out),
+                 "--rerun", str(tmp_path / "live.rrd")],
                 env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
             )  # fmt: skip
             stdout, stderr = stack.communicate(timeout=180)
@@ -133,6 +138,10 @@ body = "vessel"
     assert "estimate_inconsistent" not in codes
     assert counts["/hil/decision"] >= 4  # a decision every 2 s after the filter settled
     assert counts["/voyager/measurement/pose"] > 600  # QTM's 100 Hz, recorded as received
+    # Streamed live to Rerun as well (--rerun RRD): every decision and pose.
+    store = RrdReader(tmp_path / "live.rrd").store()
+    assert rows(store, "/world/controller/safe_inputs") == counts["/hil/decision"]
+    assert rows(store, "/world/vessel") == counts["/voyager/measurement/pose"]
 
 
 def test_a_qtm_table_selects_the_backend_with_the_ros_transform(tmp_path: Path) -> None:
