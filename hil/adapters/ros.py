@@ -65,6 +65,7 @@ __all__ = [
     "imu_from_msg",
     "init_context",
     "pose_from_msg",
+    "spin_in_thread",
     "stamp_to_ns",
     "thruster_command_from_components",
     "thruster_wrench_components",
@@ -357,6 +358,25 @@ class RosClock:
         return bool(self._node.get_clock().ros_time_is_active)
 
 
+def spin_in_thread(context: Any, node: Any, name: str) -> tuple[Any, threading.Thread]:
+    """Spin `node` on an executor of `context` in a daemon thread; return both.
+
+    The thread ends when the context shuts down (rclpy's ExternalShutdownException).
+    """
+    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+
+    def spin() -> None:
+        with contextlib.suppress(ExternalShutdownException):
+            executor.spin()
+
+    thread = threading.Thread(target=spin, name=name, daemon=True)
+    thread.start()
+    return executor, thread
+
+
 def init_context(
     rclpy: Any, context: Any, domain_id: int | None, ros_args: tuple[str, ...] = ()
 ) -> int:
@@ -435,7 +455,6 @@ class RosWorld:
             import rclpy
             from geometry_msgs.msg import PoseWithCovarianceStamped, Wrench
             from rclpy.event_handler import SubscriptionEventCallbacks
-            from rclpy.executors import SingleThreadedExecutor
             from rclpy.parameter import Parameter
             from rclpy.qos import QoSProfile, ReliabilityPolicy
             from sensor_msgs.msg import Imu
@@ -479,17 +498,8 @@ class RosWorld:
         }
         self.thruster_sink = RosThrusterSink(publishers, Wrench)
         self.clock = RosClock(self._node)
-        self._executor = SingleThreadedExecutor(context=self._context)
-        self._executor.add_node(self._node)
-        self._thread = threading.Thread(target=self._spin, name="hil-ros", daemon=True)
-        self._thread.start()
+        self._executor, self._thread = spin_in_thread(self._context, self._node, "hil-ros")
         return self
-
-    def _spin(self) -> None:
-        from rclpy.executors import ExternalShutdownException
-
-        with contextlib.suppress(ExternalShutdownException):
-            self._executor.spin()
 
     def pose_health(self) -> FeedHealth:
         """Return what the pose topic delivered and refused so far, by reason."""

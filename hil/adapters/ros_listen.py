@@ -16,7 +16,14 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
-from hil.adapters.ros import RosBackendError, RosConfig, init_context, pose_from_msg, stamp_to_ns
+from hil.adapters.ros import (
+    RosBackendError,
+    RosConfig,
+    init_context,
+    pose_from_msg,
+    spin_in_thread,
+    stamp_to_ns,
+)
 from hil.core.samples import PoseSample, SampleError
 
 __all__ = ["Heard", "RosListener"]
@@ -97,7 +104,6 @@ class RosListener:
             import rclpy
             from geometry_msgs.msg import PoseArray, PoseWithCovarianceStamped
             from rclpy.event_handler import SubscriptionEventCallbacks
-            from rclpy.executors import SingleThreadedExecutor
             from rclpy.parameter import Parameter
             from rclpy.qos import QoSProfile, ReliabilityPolicy
             from sensor_msgs.msg import Imu
@@ -123,17 +129,8 @@ class RosListener:
             self._node.create_subscription(kinds[name], tape.topic,
                                            functools.partial(self._on_message, name), qos,
                                            event_callbacks=events)
-        self._executor = SingleThreadedExecutor(context=self._context)
-        self._executor.add_node(self._node)
-        self._thread = threading.Thread(target=self._spin, name="hil-check", daemon=True)
-        self._thread.start()
+        self._executor, self._thread = spin_in_thread(self._context, self._node, "hil-check")
         return self
-
-    def _spin(self) -> None:
-        from rclpy.executors import ExternalShutdownException
-
-        with contextlib.suppress(ExternalShutdownException):
-            self._executor.spin()
 
     def _on_message(self, name: str, msg: Any) -> None:
         arrival = int(self._node.get_clock().now().nanoseconds)

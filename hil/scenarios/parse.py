@@ -368,15 +368,10 @@ def _per_bin(raw: dict[str, Any], key: str, where: str, n_bins: int) -> tuple[fl
     return values
 
 
-def _parse(data: dict[str, Any], default_name: str) -> Scenario:
-    if "margin" in data:
-        raise ScenarioError(_RETIRED_MARGIN)
-    _keys(data, _TOP_KEYS, "")
-    state = table(data, "state")
-    _keys(state, {"x_m", "y_m"}, "state.")
-    x_range = _interval(state, "x_m", "state.")
-    y_range = _interval(state, "y_m", "state.")
-
+def _grid(
+    data: dict[str, Any], x_range: tuple[float, float], y_range: tuple[float, float]
+) -> tuple[tuple[float, float], int]:
+    """Return the ``[grid]`` table's cell sizes (m, m) and heading cells, checked."""
     grid = table(data, "grid")
     _keys(grid, {"cell_m", "heading_cells", "heading_cell_rad"}, "grid.")
     cell = numbers(grid, "cell_m", "grid.", 2)
@@ -390,8 +385,11 @@ def _parse(data: dict[str, Any], default_name: str) -> Scenario:
         raise ScenarioError(
             f"key grid.'cell_m' y width {cell[1]!r} does not divide state.y_m {list(y_range)!r}"
         )
-    heading_cells = _heading_cells(grid)
+    return (cell[0], cell[1]), int(_heading_cells(grid))
 
+
+def _inputs(data: dict[str, Any]) -> tuple[InputAxis, InputAxis, InputAxis]:
+    """Return the ``[inputs]`` table's surge, sway and yaw-rate axes, checked."""
     inputs = table(data, "inputs")
     _keys(inputs, {"surge_mps", "sway_mps", "yaw_rate_radps"}, "inputs.")
     surge = _axis(inputs, "surge_mps", "inputs.")
@@ -401,6 +399,41 @@ def _parse(data: dict[str, Any], default_name: str) -> Scenario:
         raise ScenarioError(
             f"key inputs.'yaw_rate_radps' = {[yaw.min, yaw.max]!r} exceeds pi rad/s: degrees given?"
         )
+    return surge, sway, yaw
+
+
+def _obstacles(data: dict[str, Any], inflation: float, max_speed: float) -> list[Obstacle]:
+    """Return the ``[[obstacles]]`` array, each with its inflation and speed bound."""
+    raw_obstacles = data.get("obstacles", [])
+    if not isinstance(raw_obstacles, list):
+        raise ScenarioError(f"key 'obstacles' must be an array of tables, got {raw_obstacles!r}")
+    obstacles = []
+    for n, raw in enumerate(raw_obstacles):
+        where = f"obstacles[{n}]."
+        if not isinstance(raw, dict):
+            raise ScenarioError(f"key {where[:-1]!r} must be a table, got {raw!r}")
+        obstacles.append(
+            Obstacle(
+                str(raw.get("name", f"O{n + 1}")),
+                _shape(raw, where, frozenset({"max_speed_mps"})),
+                number(raw, "inflation_m", where, inflation),
+                _at_least_zero(raw, "max_speed_mps", where, max_speed),
+            )
+        )
+    return obstacles
+
+
+def _parse(data: dict[str, Any], default_name: str) -> Scenario:
+    if "margin" in data:
+        raise ScenarioError(_RETIRED_MARGIN)
+    _keys(data, _TOP_KEYS, "")
+    state = table(data, "state")
+    _keys(state, {"x_m", "y_m"}, "state.")
+    x_range = _interval(state, "x_m", "state.")
+    y_range = _interval(state, "y_m", "state.")
+
+    cell, heading_cells = _grid(data, x_range, y_range)
+    surge, sway, yaw = _inputs(data)
 
     timing = table(data, "timing")
     _keys(timing, {"tau_s"}, "timing.")
@@ -424,22 +457,7 @@ def _parse(data: dict[str, Any], default_name: str) -> Scenario:
         raise ScenarioError(f"keys abstraction.* must be >= 0, got {abstraction!r}")
 
     max_speed, tracking = _obstacle_motion(data)
-    raw_obstacles = data.get("obstacles", [])
-    if not isinstance(raw_obstacles, list):
-        raise ScenarioError(f"key 'obstacles' must be an array of tables, got {raw_obstacles!r}")
-    obstacles = []
-    for n, raw in enumerate(raw_obstacles):
-        where = f"obstacles[{n}]."
-        if not isinstance(raw, dict):
-            raise ScenarioError(f"key {where[:-1]!r} must be a table, got {raw!r}")
-        obstacles.append(
-            Obstacle(
-                str(raw.get("name", f"O{n + 1}")),
-                _shape(raw, where, frozenset({"max_speed_mps"})),
-                number(raw, "inflation_m", where, inflation),
-                _at_least_zero(raw, "max_speed_mps", where, max_speed),
-            )
-        )
+    obstacles = _obstacles(data, inflation, max_speed)
     target_data = table(data, "target")
     target = Target(
         _shape(target_data, "target."), number(target_data, "deflation_m", "target.", deflation)
@@ -450,8 +468,8 @@ def _parse(data: dict[str, Any], default_name: str) -> Scenario:
         description=str(data.get("description", "")),
         x_range_m=x_range,
         y_range_m=y_range,
-        cell_m=(cell[0], cell[1]),
-        heading_cells=int(heading_cells),
+        cell_m=cell,
+        heading_cells=heading_cells,
         surge=surge,
         sway=sway,
         yaw_rate=yaw,
