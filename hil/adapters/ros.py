@@ -67,6 +67,7 @@ __all__ = [
     "pose_from_msg",
     "spin_in_thread",
     "stamp_to_ns",
+    "stop_spinning",
     "thruster_command_from_components",
     "thruster_wrench_components",
 ]
@@ -377,6 +378,16 @@ def spin_in_thread(context: Any, node: Any, name: str) -> tuple[Any, threading.T
     return executor, thread
 
 
+def stop_spinning(context: Any, node: Any, executor: Any, thread: threading.Thread | None) -> None:
+    """Undo :func:`spin_in_thread`: stop the executor, destroy the node, shut the context."""
+    executor.shutdown()
+    node.destroy_node()
+    if context.ok():
+        context.try_shutdown()
+    if thread is not None:
+        thread.join(timeout=2.0)
+
+
 def init_context(
     rclpy: Any, context: Any, domain_id: int | None, ros_args: tuple[str, ...] = ()
 ) -> int:
@@ -555,12 +566,7 @@ class RosWorld:
         """Stop the executor, destroy the node and shut the context down."""
         if self._context is None:
             return
-        self._executor.shutdown()
-        self._node.destroy_node()
-        if self._context.ok():
-            self._context.try_shutdown()
-        if self._thread is not None:
-            self._thread.join(timeout=2.0)
+        stop_spinning(self._context, self._node, self._executor, self._thread)
         self._context = None
 
     def __enter__(self) -> RosWorld:

@@ -23,6 +23,7 @@ from hil.adapters.ros import (
     pose_from_msg,
     spin_in_thread,
     stamp_to_ns,
+    stop_spinning,
 )
 from hil.core.samples import PoseSample, SampleError
 
@@ -196,12 +197,7 @@ class RosListener:
         """Stop the executor, destroy the node and shut the context down."""
         if self._context is None:
             return
-        self._executor.shutdown()
-        self._node.destroy_node()
-        if self._context.ok():
-            self._context.try_shutdown()
-        if self._thread is not None:
-            self._thread.join(timeout=2.0)
+        stop_spinning(self._context, self._node, self._executor, self._thread)
         self._context = None
         self._node = None
 

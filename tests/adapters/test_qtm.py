@@ -38,6 +38,7 @@ RATE_HZ = 100.0
 # never later than a busy machine's pause in the first frames of an estimate (all).
 STAMP_SLACK_S = 0.005
 STAMP_WORST_S = 0.1
+STAMP_EARLY_S = 0.001
 # Silence reported as a stall (s): above the hiccups of a busy 2-core test machine.
 STALL_S = 0.25
 
@@ -109,7 +110,9 @@ def assert_stamps_true(feed: Feed) -> None:
     errors = feed.stamp_error_s
     assert errors
     assert float(np.median(errors)) <= STAMP_SLACK_S
-    assert all(0.0 <= e <= STAMP_WORST_S for e in errors)
+    # A stamp may precede the truth by QTM's microsecond timestamps against the server's
+    # float frame times after a reconnection re-estimates the offset (0.24 ms measured).
+    assert all(-STAMP_EARLY_S <= e <= STAMP_WORST_S for e in errors)
 
 
 def assert_qtm_spacing(feed: Feed, step_us: int) -> None:

@@ -50,6 +50,21 @@ def _frames_on(domain: int, topic: str, seconds: float) -> list[str]:
     return frames
 
 
+def _heard(domain: int, topic: str, args: list[str]) -> tuple[list[str], str]:
+    """Run `hil sim-vessel ARGS`, listen on `topic`; return the frame ids and its stderr."""
+    vessel = subprocess.Popen(
+        [*HIL, "sim-vessel", *args],
+        env=dds_env(domain), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    try:
+        frames = _frames_on(domain, topic, 2.0)
+    finally:
+        stop(vessel)
+    assert vessel.stderr is not None
+    with vessel.stderr:
+        return frames, vessel.stderr.read()
+
+
 def test_the_sim_vessel_publishes_on_the_configs_topic_and_frame(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -64,17 +79,8 @@ pose_frame_id = "map"
 [ros.topics]
 pose = "/mocap/voyager/pose"
 """)
-    vessel = subprocess.Popen(
-        [*HIL, "sim-vessel", "--config", str(config), "--duration", "30"],
-        env=dds_env(domain), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
-    )  # fmt: skip
-    try:
-        frames = _frames_on(domain, "/mocap/voyager/pose", 2.0)
-    finally:
-        stop(vessel)
-    assert vessel.stderr is not None
-    with vessel.stderr:
-        err = vessel.stderr.read()
+    frames, err = _heard(domain, "/mocap/voyager/pose",
+                         ["--config", str(config), "--duration", "30"])
     assert "publishing pose on /mocap/voyager/pose" in err
     assert f"ROS domain {domain}" in err
     assert len(frames) > 50, err[-2000:]
@@ -96,17 +102,8 @@ def test_ros_args_remap_the_sim_vessels_topics(
 ) -> None:
     domain = own_domain(1, 19, offset=2)
     monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    vessel = subprocess.Popen(
-        [*HIL, "sim-vessel", "coarse", "--domain-id", str(domain), "--duration", "30",
-         "--ros-args", "-r", "/voyager/measurement/pose:=/remapped/pose"],
-        env=dds_env(domain), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
-    )  # fmt: skip
-    try:
-        frames = _frames_on(domain, "/remapped/pose", 2.0)
-    finally:
-        stop(vessel)
-    assert vessel.stderr is not None
-    with vessel.stderr:
-        err = vessel.stderr.read()
+    frames, err = _heard(domain, "/remapped/pose",
+                         ["coarse", "--domain-id", str(domain), "--duration", "30",
+                          "--ros-args", "-r", "/voyager/measurement/pose:=/remapped/pose"])
     assert len(frames) > 50, err[-2000:]
     assert set(frames) == {"world_ned"}
