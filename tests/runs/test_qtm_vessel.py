@@ -7,6 +7,13 @@ the lab's ROS topic; this test bridges it into the QTM RT test server (real TCP 
 loopback), and `hil vessel` takes its pose from that server through the ``qtm`` backend
 while the IMU and the thruster commands stay on DDS. Wall time throughout: QTM's own
 timestamps are mapped onto the run's clock.
+
+The camera is in lockstep with the simulated vessel (the server is stepped by each pose the
+bridge receives, and each frame carries the pose captured at its time), as QTM stamps a
+frame with its capture time: a simulator behind wall time on a loaded machine, or a late
+DDS delivery, delays the frames, never mislabels them (a free-running camera that sends the
+newest pose it has would stamp an older pose as now, an estimation error of speed x delay
+that the filter's consistency watch rightly stops on).
 """
 
 from __future__ import annotations
@@ -38,21 +45,30 @@ HIL = [sys.executable, "-m", "hil"]
 
 
 class PoseBridge:
-    """The simulated vessel's lab pose, read from its ROS topic, for the QTM server."""
+    """The simulated vessel's lab pose, read from its ROS topic, for a stepped QTM server.
 
-    def __init__(self, domain_id: int) -> None:
+    Each pose is kept under its frame number (its stamp since the first pose, at
+    `rate_hz`) and moves the server's time to its stamp, so the frame due then carries it.
+    """
+
+    def __init__(self, domain_id: int, rate_hz: float = 100.0) -> None:
         import rclpy
         from geometry_msgs.msg import PoseWithCovarianceStamped
         from rclpy.executors import SingleThreadedExecutor
 
+        self.rate_hz = rate_hz
+        self._server: QtmTestServer | None = None
         self._context = rclpy.Context()
         rclpy.init(context=self._context, domain_id=domain_id)
         self._node = rclpy.create_node(f"qtm_bridge_{os.getpid()}", context=self._context)
         self._lock = threading.Lock()
-        self.pose: tuple[float, float, float] = (math.nan, math.nan, math.nan)
+        self._first_ns: int | None = None
+        self.first_pose = threading.Event()
+        """Set once a pose came: the server's time 0, so no frame goes out before it."""
+        self._poses: dict[int, tuple[float, float, float]] = {}
         self.count = 0
         self._node.create_subscription(
-            PoseWithCovarianceStamped, "/voyager/measurement/pose", self._on_pose, 10
+            PoseWithCovarianceStamped, "/voyager/measurement/pose", self._on_pose, 100
         )
         self._executor = SingleThreadedExecutor(context=self._context)
         self._executor.add_node(self._node)
@@ -69,14 +85,26 @@ class PoseBridge:
     def _on_pose(self, msg: Any) -> None:
         p, q = msg.pose.pose.position, msg.pose.pose.orientation
         yaw = math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+        stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
         with self._lock:
-            self.pose = (float(p.x), float(p.y), yaw)
+            if self._first_ns is None:
+                self._first_ns = stamp_ns
+            t_s = (stamp_ns - self._first_ns) / 1e9
+            self._poses[round(t_s * self.rate_hz)] = (float(p.x), float(p.y), yaw)
             self.count += 1
+            self.first_pose.set()
+            if self._server is not None and self._server.now_s() < t_s:
+                self._server.advance_to(t_s)
 
-    def __call__(self, _t_s: float) -> tuple[float, float, float]:
-        """The newest pose (north m, east m, yaw rad); NaN (a lost body) before the first."""
+    def attach(self, server: QtmTestServer | None) -> None:
+        """Step `server` by the poses from now on (None: stop stepping, before it stops)."""
         with self._lock:
-            return self.pose
+            self._server = server
+
+    def __call__(self, t_s: float) -> tuple[float, float, float]:
+        """The pose captured at server time `t_s` (north m, east m, yaw rad); NaN if none."""
+        with self._lock:
+            return self._poses.get(round(t_s * self.rate_hz), (math.nan, math.nan, math.nan))
 
     def close(self) -> None:
         """Leave the domain."""
@@ -98,7 +126,10 @@ def test_the_vessel_flies_on_poses_from_qtm(
     bridge = PoseBridge(domain)
     stack = None
     try:
-        with QtmTestServer(bridge, body="vessel", others=("1",), rate_hz=100.0) as server:
+        assert bridge.first_pose.wait(60.0), "the simulated vessel published no pose in 60 s"
+        with QtmTestServer(bridge, body="vessel", others=("1",), rate_hz=bridge.rate_hz,
+                           stepped=True) as server:
+            bridge.attach(server)
             config = tmp_path / "vessel.toml"
             config.write_text(f"""
 scenario = "coarse"
@@ -118,7 +149,10 @@ body = "vessel"
                  "--rerun", str(tmp_path / "live.rrd")],
                 env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
             )  # fmt: skip
-            stdout, stderr = stack.communicate(timeout=180)
+            try:
+                stdout, stderr = stack.communicate(timeout=180)
+            finally:
+                bridge.attach(None)
     finally:
         if stack is not None and stack.poll() is None:
             stack.kill()
