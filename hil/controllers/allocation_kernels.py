@@ -118,6 +118,82 @@ def is_feasible(xi: FloatArray, fmax: FloatArray, tol: float) -> bool:
 
 
 @njit
+def _normal_equations(
+    be: FloatArray, tau: FloatArray, wq: FloatArray, reg: float
+) -> tuple[FloatArray, FloatArray]:
+    """Return ``(H, g)``: H = B_e^T W^2 B_e + reg I, shape (5, 5); g = B_e^T W^2 tau, (5,)."""
+    h = np.zeros((N_XI, N_XI))
+    g = np.zeros(N_XI)
+    for a in range(N_XI):
+        for i in range(3):
+            wsq = wq[i] * wq[i]
+            g[a] += be[i, a] * wsq * tau[i]
+            for b in range(N_XI):
+                h[a, b] += be[i, a] * wsq * be[i, b]
+        h[a, a] += reg
+    return h, g
+
+
+@njit
+def _gradient_lipschitz(be: FloatArray, wq: FloatArray, reg: float) -> float:
+    """Return L = lambda_max(B_e^T W^2 B_e) + reg, the gradient's Lipschitz constant.
+
+    lambda_max(B^T W^2 B) = lambda_max(W B B^T W), a 3x3 matrix: power iteration in
+    scalars (no allocation in the loop; 40 steps are ample for the step size).
+    """
+    sm = np.zeros((3, 3))
+    for i in range(3):
+        for j in range(3):
+            acc = 0.0
+            for a in range(N_XI):
+                acc += be[i, a] * be[j, a]
+            sm[i, j] = wq[i] * acc * wq[j]
+    v0, v1, v2 = 1.0, 1.0, 1.0
+    lip = 1.0
+    for _ in range(40):
+        w0 = sm[0, 0] * v0 + sm[0, 1] * v1 + sm[0, 2] * v2
+        w1 = sm[1, 0] * v0 + sm[1, 1] * v1 + sm[1, 2] * v2
+        w2 = sm[2, 0] * v0 + sm[2, 1] * v1 + sm[2, 2] * v2
+        lip = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
+        v0, v1, v2 = w0 / lip, w1 / lip, w2 / lip
+    return lip + reg
+
+
+@njit
+def _gradient_step(
+    h: FloatArray, g: FloatArray, y: FloatArray, step: float, grad: FloatArray, x_new: FloatArray
+) -> None:
+    """Write grad = H y - g and x_new = y - step * grad (both (5,), in place)."""
+    for a in range(N_XI):
+        acc = -g[a]
+        for b in range(N_XI):
+            acc += h[a, b] * y[b]
+        grad[a] = acc
+        x_new[a] = y[a] - step * acc
+
+
+@njit
+def _points_uphill(grad: FloatArray, x_new: FloatArray, x: FloatArray) -> bool:
+    """Return whether the step x -> x_new goes up the gradient (grad . (x_new - x) > 0)."""
+    uphill = 0.0
+    for a in range(N_XI):
+        uphill += grad[a] * (x_new[a] - x[a])
+    return uphill > 0.0
+
+
+@njit
+def _accept_step(x: FloatArray, x_new: FloatArray, y: FloatArray, beta: float) -> float:
+    """Move x to x_new and y to x_new + beta (x_new - x), in place; return max |x_new - x| (N)."""
+    moved = 0.0
+    for a in range(N_XI):
+        d = x_new[a] - x[a]
+        moved = max(moved, abs(d))
+        y[a] = x_new[a] + beta * d
+        x[a] = x_new[a]
+    return moved
+
+
+@njit
 def bounded_least_squares(
     be: FloatArray,
     tau: FloatArray,
@@ -146,62 +222,22 @@ def bounded_least_squares(
         Beck & Teboulle (2009) FISTA with the constant step 1 / L,
         L = lambda_max(B_e^T W^2 B_e) + reg, and gradient restarts.
     """
-    h = np.zeros((N_XI, N_XI))
-    g = np.zeros(N_XI)
-    for a in range(N_XI):
-        for i in range(3):
-            wsq = wq[i] * wq[i]
-            g[a] += be[i, a] * wsq * tau[i]
-            for b in range(N_XI):
-                h[a, b] += be[i, a] * wsq * be[i, b]
-        h[a, a] += reg
-    # lambda_max(B^T W^2 B) = lambda_max(W B B^T W), a 3x3 matrix: power iteration
-    # in scalars (no allocation in the loop; 40 steps are ample for the step size).
-    sm = np.zeros((3, 3))
-    for i in range(3):
-        for j in range(3):
-            acc = 0.0
-            for a in range(N_XI):
-                acc += be[i, a] * be[j, a]
-            sm[i, j] = wq[i] * acc * wq[j]
-    v0, v1, v2 = 1.0, 1.0, 1.0
-    lip = 1.0
-    for _ in range(40):
-        w0 = sm[0, 0] * v0 + sm[0, 1] * v1 + sm[0, 2] * v2
-        w1 = sm[1, 0] * v0 + sm[1, 1] * v1 + sm[1, 2] * v2
-        w2 = sm[2, 0] * v0 + sm[2, 1] * v1 + sm[2, 2] * v2
-        lip = math.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
-        v0, v1, v2 = w0 / lip, w1 / lip, w2 / lip
-    lip += reg
-    step = 1.0 / (lip * 1.01)
+    h, g = _normal_equations(be, tau, wq, reg)
+    step = 1.0 / (_gradient_lipschitz(be, wq, reg) * 1.01)
     x = project_feasible(xi0, fmax)
     y = x.copy()
     x_new = np.empty(N_XI)
     grad = np.empty(N_XI)
     t = 1.0
     for _ in range(iterations):
-        for a in range(N_XI):
-            acc = -g[a]
-            for b in range(N_XI):
-                acc += h[a, b] * y[b]
-            grad[a] = acc
-            x_new[a] = y[a] - step * acc
+        _gradient_step(h, g, y, step, grad, x_new)
         _project_in_place(x_new, fmax)
         # Gradient restart (O'Donoghue & Candes 2015): drop the momentum when it
         # points uphill, which makes the convergence linear near the solution.
-        uphill = 0.0
-        for a in range(N_XI):
-            uphill += grad[a] * (x_new[a] - x[a])
-        if uphill > 0.0:
+        if _points_uphill(grad, x_new, x):
             t = 1.0
         t_new = 0.5 * (1.0 + math.sqrt(1.0 + 4.0 * t * t))
-        beta = (t - 1.0) / t_new
-        moved = 0.0
-        for a in range(N_XI):
-            d = x_new[a] - x[a]
-            moved = max(moved, abs(d))
-            y[a] = x_new[a] + beta * d
-            x[a] = x_new[a]
+        moved = _accept_step(x, x_new, y, (t - 1.0) / t_new)
         t = t_new
         if moved < 1e-13:  # converged (to rounding) before the iteration cap
             break

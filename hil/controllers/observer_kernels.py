@@ -158,8 +158,17 @@ def obs_predicted(a: EkfArrays, t_ns: int, x_out: FloatArray, P_out: FloatArray)
     return True
 
 
+_NOT_REFUSED = -1
+"""What a refusal check returns for a sample it lets through (no ``S_*`` code)."""
+
+# The kernels below take the EkfArrays fields one by one (x, P, ht = hist_t_ns,
+# hx = hist_x, hc = hist_cov, hu = hist_u, hz = hist_z, meta, c = counters,
+# prm = params, innov = innovation): a helper taking the bundle increfs all eleven
+# arrays per call, which measurably slows the per-sample path.
+
+
 @njit
-def _gated(
+def _restart_at_pose(
     x: FloatArray,
     P: FloatArray,
     ht: IntArray,
@@ -168,28 +177,18 @@ def _gated(
     hu: FloatArray,
     hz: FloatArray,
     meta: IntArray,
-    c: IntArray,
     prm: FloatArray,
     x_m: float,
     y_m: float,
     psi: float,
-) -> int:
-    """Count a gated pose; after P_GATE_RESET in a row, restart the filter from this one.
+) -> None:
+    """Restart the filter from a pose: eta from it, nu and the biases kept, one slot left.
 
-    Persistent disagreement between 1 mm poses and the prediction means the
-    prediction is wrong (a jump in accelerometer bias from tilt, a wrong start),
-    and gating on would let the dead reckoning run away. The restart sets eta to
-    the pose at the filter time (a late pose's age is ignored: at most the
-    latency's worth of motion), keeps nu and the biases, sets P to
-    diag(R_pose, restart variances of nu and the biases) and clears the history.
+    eta is set to the pose at the filter time (a late pose's age is ignored: at most
+    the latency's worth of motion) and P to diag(R_pose, restart variances of nu and
+    the biases).
     """
-    meta[M_GATED_RUN] += 1
-    limit = prm[P_GATE_RESET]
-    if limit <= 0.0 or meta[M_GATED_RUN] < limit:
-        c[C_POSE_GATED] += 1
-        return S_GATED
-    k_len = ht.shape[0]
-    head = slot_index(meta, k_len, meta[M_COUNT] - 1)
+    head = slot_index(meta, ht.shape[0], meta[M_COUNT] - 1)
     x[I_X] = x_m
     x[I_Y] = y_m
     x[I_PSI] = psi
@@ -215,8 +214,76 @@ def _gated(
     meta[M_START] = 0
     meta[M_COUNT] = 1
     meta[M_GATED_RUN] = 0
+
+
+@njit
+def _gated(
+    x: FloatArray,
+    P: FloatArray,
+    ht: IntArray,
+    hx: FloatArray,
+    hc: FloatArray,
+    hu: FloatArray,
+    hz: FloatArray,
+    meta: IntArray,
+    c: IntArray,
+    prm: FloatArray,
+    x_m: float,
+    y_m: float,
+    psi: float,
+) -> int:
+    """Count a gated pose; after P_GATE_RESET in a row, restart the filter from this one.
+
+    Persistent disagreement between 1 mm poses and the prediction means the
+    prediction is wrong (a jump in accelerometer bias from tilt, a wrong start),
+    and gating on would let the dead reckoning run away (see :func:`_restart_at_pose`).
+    """
+    meta[M_GATED_RUN] += 1
+    limit = prm[P_GATE_RESET]
+    if limit <= 0.0 or meta[M_GATED_RUN] < limit:
+        c[C_POSE_GATED] += 1
+        return S_GATED
+    _restart_at_pose(x, P, ht, hx, hc, hu, hz, meta, prm, x_m, y_m, psi)
     c[C_POSE_RESET] += 1
     return S_RESET
+
+
+@njit
+def _history_slot(ht: IntArray, meta: IntArray, prm: FloatArray, t_ns: int) -> tuple[int, bool]:
+    """Return ``(j, same_stamp)`` for a sample at `t_ns`, at or before the filter time.
+
+    j is the logical slot at or before `t_ns`, -1 when the sample is too old (older
+    than ``P_MAX_DELAY`` or than the oldest slot, or a new slot would go before the
+    oldest of a full ring); same_stamp whether slot j has the sample's stamp.
+    """
+    j = oldest_usable(ht, meta, prm, t_ns)
+    if j < 0:
+        return -1, False
+    k_len = ht.shape[0]
+    same_stamp = ht[slot_index(meta, k_len, j)] == t_ns
+    if not same_stamp and meta[M_COUNT] == k_len and j == 0:
+        return -1, False
+    return j, same_stamp
+
+
+@njit
+def _refuse_pose(
+    meta: IntArray, c: IntArray, prm: FloatArray, x_m: float, y_m: float, psi_rad: float
+) -> int:
+    """Return the counted ``S_*`` code of a pose refused whatever its stamp, else _NOT_REFUSED.
+
+    Refused: a value not finite, a position beyond ``P_MAX_POS``, a filter not started.
+    """
+    if not (math.isfinite(x_m) and math.isfinite(y_m) and math.isfinite(psi_rad)):
+        c[C_POSE_NONFINITE] += 1
+        return S_NONFINITE
+    if abs(x_m) > prm[P_MAX_POS] or abs(y_m) > prm[P_MAX_POS]:
+        c[C_POSE_ABSURD] += 1
+        return S_ABSURD
+    if meta[M_INIT] == 0:
+        c[C_NOT_INITIALIZED] += 1
+        return S_NOT_INITIALIZED
+    return _NOT_REFUSED
 
 
 @njit
@@ -243,23 +310,8 @@ def obs_pose(a: EkfArrays, t_ns: int, x_m: float, y_m: float, psi_rad: float) ->
         ``smooth_lagged_data``). Older than ``P_MAX_DELAY`` or than the oldest slot:
         refused as too old.
     """
-    return _pose_event(
-        a.x,
-        a.P,
-        a.hist_t_ns,
-        a.hist_x,
-        a.hist_cov,
-        a.hist_u,
-        a.hist_z,
-        a.meta,
-        a.counters,
-        a.params,
-        a.innovation,
-        t_ns,
-        x_m,
-        y_m,
-        psi_rad,
-    )
+    return _pose_event(a.x, a.P, a.hist_t_ns, a.hist_x, a.hist_cov, a.hist_u, a.hist_z, a.meta,
+                       a.counters, a.params, a.innovation, t_ns, x_m, y_m, psi_rad)
 
 
 @njit
@@ -280,94 +332,174 @@ def _pose_event(
     y_m: float,
     psi_rad: float,
 ) -> int:
-    """Do :func:`obs_pose` on the arrays one by one (innov: the pose's innovation)."""
+    """Do :func:`obs_pose` on the arrays one by one: refuse it, or fuse it where it belongs."""
     innov[0] = innov[1] = innov[2] = math.nan
-    if not (math.isfinite(x_m) and math.isfinite(y_m) and math.isfinite(psi_rad)):
-        c[C_POSE_NONFINITE] += 1
-        return S_NONFINITE
-    if abs(x_m) > prm[P_MAX_POS] or abs(y_m) > prm[P_MAX_POS]:
-        c[C_POSE_ABSURD] += 1
-        return S_ABSURD
-    if meta[M_INIT] == 0:
-        c[C_NOT_INITIALIZED] += 1
-        return S_NOT_INITIALIZED
-    j = oldest_usable(ht, meta, prm, t_ns)
+    refused = _refuse_pose(meta, c, prm, x_m, y_m, psi_rad)
+    if refused != _NOT_REFUSED:
+        return refused
+    j, same_stamp = _history_slot(ht, meta, prm, t_ns)
     if j < 0:
         c[C_POSE_TOO_OLD] += 1
         return S_TOO_OLD
-    k_len = ht.shape[0]
-    count = meta[M_COUNT]
-    pj = slot_index(meta, k_len, j)
-    same_stamp = ht[pj] == t_ns
-    if same_stamp and not math.isnan(hz[pj, Z_X]):
+    p = slot_index(meta, ht.shape[0], j)
+    if same_stamp and not math.isnan(hz[p, Z_X]):
         c[C_POSE_DUPLICATE] += 1
         return S_DUPLICATE
-    if not same_stamp and count == k_len and j == 0:
-        c[C_POSE_TOO_OLD] += 1
-        return S_TOO_OLD
-    t_head = head_time(ht, meta)
+    late = t_ns < head_time(ht, meta)
     psi = wrap_angle(psi_rad)
-    rx = prm[P_R_X]
-    ry = prm[P_R_Y]
-    rpsi = prm[P_R_PSI]
-    gate = prm[P_GATE_POSE]
-    if same_stamp and j == count - 1:
-        # Fast path: a pose at the filter time updates the posterior in place.
-        pose_innovation(x, P, x_m, y_m, psi, rx, ry, rpsi, innov)
-        if not _update_pose(x, P, x_m, y_m, psi, rx, ry, rpsi, gate):
-            return _gated(x, P, ht, hx, hc, hu, hz, meta, c, prm, x_m, y_m, psi)
-        p = pj
-        q = j
-    elif same_stamp:
-        # Late, at a stamp the history has (the usual latency case): re-run from
-        # that slot with the gate checked there; refused, the saved posterior
-        # comes back bit for bit (no later slot was touched yet).
-        x_save = x.copy()
-        P_save = P.copy()
-        load_prior(hx, hc, pj, x, P)
-        fuse_stored(x, P, hz, pj, prm)
-        pose_innovation(x, P, x_m, y_m, psi, rx, ry, rpsi, innov)
-        if not _update_pose(x, P, x_m, y_m, psi, rx, ry, rpsi, gate):
-            x[:] = x_save
-            P[:, :] = P_save
-            return _gated(x, P, ht, hx, hc, hu, hz, meta, c, prm, x_m, y_m, psi)
-        hz[pj, Z_X] = x_m
-        hz[pj, Z_Y] = y_m
-        hz[pj, Z_PSI] = psi
-        propagate(x, P, ht, hx, hc, hu, hz, meta, prm, j)
-        return _fused(meta, c, t_ns < t_head)
-    else:
-        xs = np.empty(N_STATE)
-        Ps = np.empty((N_STATE, N_STATE))
-        prior_at(x, P, ht, hx, hc, hu, hz, meta, prm, j, t_ns, xs, Ps)
-        xg = xs.copy()
-        Pg = Ps.copy()
-        pose_innovation(xs, Ps, x_m, y_m, psi, rx, ry, rpsi, innov)
-        if not _update_pose(xg, Pg, x_m, y_m, psi, rx, ry, rpsi, gate):
-            return _gated(x, P, ht, hx, hc, hu, hz, meta, c, prm, x_m, y_m, psi)
-        j = make_room(meta, k_len, j)
-        q = j + 1
-        p = insert_slot(ht, hx, hc, hu, hz, meta, q, t_ns)
-        store_prior(hx, hc, p, xs, Ps)
-        if q == meta[M_COUNT] - 1:
-            x[:] = xg
-            P[:, :] = Pg
-    hz[p, Z_X] = x_m
-    hz[p, Z_Y] = y_m
-    hz[p, Z_PSI] = psi
-    if q < meta[M_COUNT] - 1:
-        rerun(x, P, ht, hx, hc, hu, hz, meta, prm, q)
-    return _fused(meta, c, t_ns < t_head)
+    if not same_stamp:
+        return _fuse_pose_in_new_slot(x, P, ht, hx, hc, hu, hz, meta, c, prm, innov, j, t_ns,
+                                      x_m, y_m, psi, late)
+    if j < meta[M_COUNT] - 1:
+        return _fuse_pose_at_stored_stamp(x, P, ht, hx, hc, hu, hz, meta, c, prm, innov, j,
+                                          x_m, y_m, psi, late)
+    # At the filter time: the posterior is updated in place.
+    if not _update_with_pose(x, P, prm, innov, x_m, y_m, psi):
+        return _gated(x, P, ht, hx, hc, hu, hz, meta, c, prm, x_m, y_m, psi)
+    _store_pose(hz, p, x_m, y_m, psi)
+    return _pose_fused(meta, c, late)
 
 
 @njit
-def _fused(meta: IntArray, c: IntArray, late: bool) -> int:
+def _update_with_pose(
+    x: FloatArray,
+    P: FloatArray,
+    prm: FloatArray,
+    innov: FloatArray,
+    x_m: float,
+    y_m: float,
+    psi: float,
+) -> bool:
+    """Write the pose's innovation against (x, P) to innov (3,), then fuse it into (x, P).
+
+    Returns:
+        Whether the pose passed its gate ((x, P) untouched when not).
+    """
+    rx, ry, rpsi = prm[P_R_X], prm[P_R_Y], prm[P_R_PSI]
+    pose_innovation(x, P, x_m, y_m, psi, rx, ry, rpsi, innov)
+    return _update_pose(x, P, x_m, y_m, psi, rx, ry, rpsi, prm[P_GATE_POSE])
+
+
+@njit
+def _store_pose(hz: FloatArray, p: int, x_m: float, y_m: float, psi: float) -> None:
+    """Record a fused pose in ring slot `p` (physical index) of the measurements (K, 4)."""
+    hz[p, Z_X] = x_m
+    hz[p, Z_Y] = y_m
+    hz[p, Z_PSI] = psi
+
+
+@njit
+def _fuse_pose_at_stored_stamp(
+    x: FloatArray,
+    P: FloatArray,
+    ht: IntArray,
+    hx: FloatArray,
+    hc: FloatArray,
+    hu: FloatArray,
+    hz: FloatArray,
+    meta: IntArray,
+    c: IntArray,
+    prm: FloatArray,
+    innov: FloatArray,
+    j: int,
+    x_m: float,
+    y_m: float,
+    psi: float,
+    late: bool,
+) -> int:
+    """Fuse a late pose at logical slot j, a stamp the history has (the usual latency case).
+
+    Re-run from that slot with the gate checked there; refused, the saved posterior
+    comes back bit for bit (no later slot was touched yet).
+    """
+    p = slot_index(meta, ht.shape[0], j)
+    x_save = x.copy()
+    P_save = P.copy()
+    load_prior(hx, hc, p, x, P)
+    fuse_stored(x, P, hz, p, prm)
+    if not _update_with_pose(x, P, prm, innov, x_m, y_m, psi):
+        x[:] = x_save
+        P[:, :] = P_save
+        return _gated(x, P, ht, hx, hc, hu, hz, meta, c, prm, x_m, y_m, psi)
+    _store_pose(hz, p, x_m, y_m, psi)
+    propagate(x, P, ht, hx, hc, hu, hz, meta, prm, j)
+    return _pose_fused(meta, c, late)
+
+
+@njit
+def _fuse_pose_in_new_slot(
+    x: FloatArray,
+    P: FloatArray,
+    ht: IntArray,
+    hx: FloatArray,
+    hc: FloatArray,
+    hu: FloatArray,
+    hz: FloatArray,
+    meta: IntArray,
+    c: IntArray,
+    prm: FloatArray,
+    innov: FloatArray,
+    j: int,
+    t_ns: int,
+    x_m: float,
+    y_m: float,
+    psi: float,
+    late: bool,
+) -> int:
+    """Fuse a pose at a stamp the history lacks, after logical slot j: a slot opens there.
+
+    The gate is checked on the prior at `t_ns`; fused, the filter is re-run from the
+    new slot (or, the new slot being the newest, the posterior is the fused prior).
+    """
+    xs = np.empty(N_STATE)
+    Ps = np.empty((N_STATE, N_STATE))
+    prior_at(x, P, ht, hx, hc, hu, hz, meta, prm, j, t_ns, xs, Ps)
+    xg = xs.copy()
+    Pg = Ps.copy()
+    if not _update_with_pose(xg, Pg, prm, innov, x_m, y_m, psi):
+        return _gated(x, P, ht, hx, hc, hu, hz, meta, c, prm, x_m, y_m, psi)
+    q = make_room(meta, ht.shape[0], j) + 1
+    p = insert_slot(ht, hx, hc, hu, hz, meta, q, t_ns)
+    store_prior(hx, hc, p, xs, Ps)
+    _store_pose(hz, p, x_m, y_m, psi)
+    if q == meta[M_COUNT] - 1:
+        x[:] = xg
+        P[:, :] = Pg
+    else:
+        rerun(x, P, ht, hx, hc, hu, hz, meta, prm, q)
+    return _pose_fused(meta, c, late)
+
+
+@njit
+def _pose_fused(meta: IntArray, c: IntArray, late: bool) -> int:
     """Count a fused pose and end a run of gated ones."""
     meta[M_GATED_RUN] = 0
     c[C_POSE_FUSED] += 1
     if late:
         c[C_POSE_LATE] += 1
     return S_FUSED
+
+
+@njit
+def _refuse_imu(
+    meta: IntArray, c: IntArray, prm: FloatArray, accel_x: float, accel_y: float, yaw_rate: float
+) -> int:
+    """Return the counted ``S_*`` code of an IMU sample refused whatever its stamp.
+
+    Refused: a value not finite, an acceleration beyond ``P_MAX_ACC`` or a rate beyond
+    ``P_MAX_RATE``, a filter not started. Else _NOT_REFUSED.
+    """
+    if not (math.isfinite(accel_x) and math.isfinite(accel_y) and math.isfinite(yaw_rate)):
+        c[C_IMU_NONFINITE] += 1
+        return S_NONFINITE
+    max_acc = prm[P_MAX_ACC]
+    if abs(accel_x) > max_acc or abs(accel_y) > max_acc or abs(yaw_rate) > prm[P_MAX_RATE]:
+        c[C_IMU_ABSURD] += 1
+        return S_ABSURD
+    if meta[M_INIT] == 0:
+        c[C_NOT_INITIALIZED] += 1
+        return S_NOT_INITIALIZED
+    return _NOT_REFUSED
 
 
 @njit
@@ -387,22 +519,8 @@ def obs_imu(a: EkfArrays, t_ns: int, accel_x: float, accel_y: float, yaw_rate: f
         failed its gate; or the ``S_*`` reason the whole sample was refused (state
         untouched). The matching counter is incremented.
     """
-    return _imu_event(
-        a.x,
-        a.P,
-        a.hist_t_ns,
-        a.hist_x,
-        a.hist_cov,
-        a.hist_u,
-        a.hist_z,
-        a.meta,
-        a.counters,
-        a.params,
-        t_ns,
-        accel_x,
-        accel_y,
-        yaw_rate,
-    )
+    return _imu_event(a.x, a.P, a.hist_t_ns, a.hist_x, a.hist_cov, a.hist_u, a.hist_z, a.meta,
+                      a.counters, a.params, t_ns, accel_x, accel_y, yaw_rate)
 
 
 @njit
@@ -422,71 +540,97 @@ def _imu_event(
     accel_y: float,
     yaw_rate: float,
 ) -> int:
-    """Do :func:`obs_imu` on the arrays one by one."""
-    if not (math.isfinite(accel_x) and math.isfinite(accel_y) and math.isfinite(yaw_rate)):
-        c[C_IMU_NONFINITE] += 1
-        return S_NONFINITE
-    max_acc = prm[P_MAX_ACC]
-    if abs(accel_x) > max_acc or abs(accel_y) > max_acc or abs(yaw_rate) > prm[P_MAX_RATE]:
-        c[C_IMU_ABSURD] += 1
-        return S_ABSURD
-    if meta[M_INIT] == 0:
-        c[C_NOT_INITIALIZED] += 1
-        return S_NOT_INITIALIZED
-    k_len = ht.shape[0]
+    """Do :func:`obs_imu` on the arrays one by one: refuse it, or take it where it belongs."""
+    refused = _refuse_imu(meta, c, prm, accel_x, accel_y, yaw_rate)
+    if refused != _NOT_REFUSED:
+        return refused
     t_head = head_time(ht, meta)
-    r_var = prm[P_R_GYRO]
-    gate = prm[P_GATE_GYRO]
     if t_ns > t_head:
         # Fast path: predict the posterior in place and open a slot at t_ns.
+        k_len = ht.shape[0]
         head = slot_index(meta, k_len, meta[M_COUNT] - 1)
         ekf_predict(x, P, (t_ns - t_head) * NS_TO_S, hu[head, U_AX], hu[head, U_AY], prm)
         make_room(meta, k_len, 0)
         p = insert_slot(ht, hx, hc, hu, hz, meta, meta[M_COUNT], t_ns)
         store_prior(hx, hc, p, x, P)
-        hu[p, U_AX] = accel_x
-        hu[p, U_AY] = accel_y
-        hu[p, U_OWN] = 1.0
-        gyro_ok = ekf_update_yaw_rate(x, P, yaw_rate, r_var, gate)
+        _hold_input(hu, p, accel_x, accel_y)
+        gyro_ok = ekf_update_yaw_rate(x, P, yaw_rate, prm[P_R_GYRO], prm[P_GATE_GYRO])
         if gyro_ok:
             hz[p, Z_R] = yaw_rate
-        c[C_IMU_FUSED] += 1
-        if not gyro_ok:
-            c[C_GYRO_GATED] += 1
-            return S_GATED
-        return S_FUSED
-    j = oldest_usable(ht, meta, prm, t_ns)
+        return _imu_fused(c, False, gyro_ok)
+    j, same_stamp = _history_slot(ht, meta, prm, t_ns)
     if j < 0:
         c[C_IMU_TOO_OLD] += 1
         return S_TOO_OLD
-    count = meta[M_COUNT]
-    pj = slot_index(meta, k_len, j)
-    same_stamp = ht[pj] == t_ns
-    if same_stamp and hu[pj, U_OWN] == 1.0:
+    if same_stamp and hu[slot_index(meta, ht.shape[0], j), U_OWN] == 1.0:
         c[C_IMU_DUPLICATE] += 1
         return S_DUPLICATE
-    if not same_stamp and count == k_len and j == 0:
-        c[C_IMU_TOO_OLD] += 1
-        return S_TOO_OLD
+    return _imu_in_history(x, P, ht, hx, hc, hu, hz, meta, c, prm, j, same_stamp, t_ns,
+                           t_ns < t_head, accel_x, accel_y, yaw_rate)
+
+
+@njit
+def _hold_input(hu: FloatArray, p: int, accel_x: float, accel_y: float) -> None:
+    """Hold an IMU sample's accelerations from ring slot `p` (physical index), its own."""
+    hu[p, U_AX] = accel_x
+    hu[p, U_AY] = accel_y
+    hu[p, U_OWN] = 1.0
+
+
+@njit
+def _imu_fused(c: IntArray, late: bool, gyro_ok: bool) -> int:
+    """Count an IMU sample taken (late or not, its rate gated or not); return its status."""
+    c[C_IMU_FUSED] += 1
+    if late:
+        c[C_IMU_LATE] += 1
+    if not gyro_ok:
+        c[C_GYRO_GATED] += 1
+        return S_GATED
+    return S_FUSED
+
+
+@njit
+def _imu_in_history(
+    x: FloatArray,
+    P: FloatArray,
+    ht: IntArray,
+    hx: FloatArray,
+    hc: FloatArray,
+    hu: FloatArray,
+    hz: FloatArray,
+    meta: IntArray,
+    c: IntArray,
+    prm: FloatArray,
+    j: int,
+    same_stamp: bool,
+    t_ns: int,
+    late: bool,
+    accel_x: float,
+    accel_y: float,
+    yaw_rate: float,
+) -> int:
+    """Take an IMU sample at or before the filter time, at or after logical slot j.
+
+    Its accelerations hold from its slot (opened if none has its stamp) up to the
+    next IMU sample of its own; the rate is gated on the prior there and the filter
+    re-run forward from the slot.
+    """
     xs = np.empty(N_STATE)
     Ps = np.empty((N_STATE, N_STATE))
     prior_at(x, P, ht, hx, hc, hu, hz, meta, prm, j, t_ns, xs, Ps)
     xg = xs.copy()
     Pg = Ps.copy()
-    gyro_ok = ekf_update_yaw_rate(xg, Pg, yaw_rate, r_var, gate)
+    gyro_ok = ekf_update_yaw_rate(xg, Pg, yaw_rate, prm[P_R_GYRO], prm[P_GATE_GYRO])
+    k_len = ht.shape[0]
     if same_stamp:
-        p = pj
         q = j
+        p = slot_index(meta, k_len, j)
     else:
-        j = make_room(meta, k_len, j)
-        q = j + 1
+        q = make_room(meta, k_len, j) + 1
         p = insert_slot(ht, hx, hc, hu, hz, meta, q, t_ns)
         store_prior(hx, hc, p, xs, Ps)
-    hu[p, U_AX] = accel_x
-    hu[p, U_AY] = accel_y
-    hu[p, U_OWN] = 1.0
-    n_slots = meta[M_COUNT]
-    for logical in range(q + 1, n_slots):
+    _hold_input(hu, p, accel_x, accel_y)
+    for logical in range(q + 1, meta[M_COUNT]):  # up to the next sample of its own
         pl = slot_index(meta, k_len, logical)
         if hu[pl, U_OWN] == 1.0:
             break
@@ -494,17 +638,10 @@ def _imu_event(
         hu[pl, U_AY] = accel_y
     if gyro_ok:
         hz[p, Z_R] = yaw_rate
-    if q == n_slots - 1:
-        # Same stamp as the head (t_ns > t_head took the fast path).
+    if q == meta[M_COUNT] - 1:  # same stamp as the head (a later one took the fast path)
         if gyro_ok:
             x[:] = xg
             P[:, :] = Pg
     else:
         rerun(x, P, ht, hx, hc, hu, hz, meta, prm, q)
-    c[C_IMU_FUSED] += 1
-    if t_ns < t_head:
-        c[C_IMU_LATE] += 1
-    if not gyro_ok:
-        c[C_GYRO_GATED] += 1
-        return S_GATED
-    return S_FUSED
+    return _imu_fused(c, late, gyro_ok)
