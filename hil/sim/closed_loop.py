@@ -261,20 +261,37 @@ def closed_loop_kernel(
             tau_cmd, u_set, a_set, _, low_state = low_level_tick(low, low_state, nu_ref, nu_hat)
         plant_step(m_inv, coef, low.tp, method, dt, plant, u_set, a_set, b_env[k], trace)
         tau[:] = trace[TR_TAU : TR_TAU + 3]
-        row = out[k]
-        row[0] = k * dt
-        row[1:4] = trace[TR_ETA : TR_ETA + 3]
-        row[4:7] = trace[TR_NU : TR_NU + 3]
-        row[7:10] = nu_hat
-        row[10:13] = nu_ref
-        row[13:16] = tau_cmd
-        row[16:19] = tau
-        row[19:22] = plant[P_U : P_U + 3]
-        row[22:24] = plant[P_ALPHA : P_ALPHA + 2]
-        row[24:27] = u_set
-        row[27:29] = a_set
-        row[29:32] = eta_hat
+        _write_row(out, k, k * dt, trace, plant, nu_hat, eta_hat, nu_ref, tau_cmd, u_set, a_set)
 
+
+@njit
+def _write_row(
+    out: FloatArray,
+    k: int,
+    t_s: float,
+    trace: FloatArray,
+    plant: FloatArray,
+    nu_hat: FloatArray,
+    eta_hat: FloatArray,
+    nu_ref: FloatArray,
+    tau_cmd: FloatArray,
+    u_set: FloatArray,
+    a_set: FloatArray,
+) -> None:
+    """Write row k of the output (N, N_OUT): the columns :func:`unpack` reads."""
+    row = out[k]
+    row[0] = t_s
+    row[1:4] = trace[TR_ETA : TR_ETA + 3]
+    row[4:7] = trace[TR_NU : TR_NU + 3]
+    row[7:10] = nu_hat
+    row[10:13] = nu_ref
+    row[13:16] = tau_cmd
+    row[16:19] = trace[TR_TAU : TR_TAU + 3]
+    row[19:22] = plant[P_U : P_U + 3]
+    row[22:24] = plant[P_ALPHA : P_ALPHA + 2]
+    row[24:27] = u_set
+    row[27:29] = a_set
+    row[29:32] = eta_hat
 
 N_OUT = 32
 
