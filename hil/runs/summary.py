@@ -293,11 +293,7 @@ def summarize_run(
         sources: Where the run's controllers came from; None when not counted.
     """
     clearance = hull_clearance_series(scenario, trajectory, obstacle_offsets_m)
-    moving = 0 if obstacle_offsets_m is None else int(
-        np.count_nonzero(np.any(obstacle_offsets_m != 0.0, axis=(1, 2))))
     synth = stats.synthesis_seconds or [math.nan]
-    ticks = np.asarray(stats.t_ns, dtype=np.int64)
-    nu_ref = np.asarray(stats.nu_ref, dtype=np.float64).reshape(-1, 3)
     reached = stats.target_reached_ns
     return RunSummary(
         scenario=scenario_name,
@@ -317,7 +313,7 @@ def summarize_run(
         not_winning_decisions=stats.not_winning_decisions,
         rejected_samples=stats.rejected_samples,
         pose_losses=stats.pose_losses,
-        tracking=TrackingError.of(tracking_error(ticks, velocity, ticks, nu_ref)),
+        tracking=_tracking(stats, velocity),
         period_jitter_p99_ms=period_jitter_p99_ms(stats.tick_wall_ns, nominal_s),
         overruns=stats.overruns,
         log=log,
@@ -327,7 +323,7 @@ def summarize_run(
         value_not_decreasing=stats.value_not_decreasing,
         worst_tube_exit_m=stats.worst_tube_exit_m,
         worst_successor_miss_m=stats.worst_successor_miss_m,
-        moving_obstacles=moving,
+        moving_obstacles=_moving_obstacles(obstacle_offsets_m),
         obstacle_stale_stops=stats.obstacle_stale_stops,
         report_age_relied_s=stats.report_age_relied_s,
         report_age_solved_s=stats.report_age_solved_s,
@@ -339,6 +335,20 @@ def summarize_run(
         feed_rejections=feed_rejections,
         sources=sources,
     )
+
+
+def _moving_obstacles(offsets_m: FloatArray | None) -> int:
+    """Return how many obstacles move: nonzero offsets (n_obstacles, N, 2) (m); None: none."""
+    if offsets_m is None:
+        return 0
+    return int(np.count_nonzero(np.any(offsets_m != 0.0, axis=(1, 2))))
+
+
+def _tracking(stats: RunStats, velocity: FloatArray) -> TrackingError:
+    """Return the error of `velocity` (len(stats.t_ns), 3) against the reference at each tick."""
+    ticks = np.asarray(stats.t_ns, dtype=np.int64)
+    nu_ref = np.asarray(stats.nu_ref, dtype=np.float64).reshape(-1, 3)
+    return TrackingError.of(tracking_error(ticks, velocity, ticks, nu_ref))
 
 
 def period_jitter_p99_ms(tick_ns: list[int], nominal_s: float) -> float:

@@ -309,24 +309,44 @@ def _class_tables(
     per_sub: int,
 ) -> _ClassTables:
     """Tables of one class: rho(t) (m, T) and theta(t) (T,) bound the deviation from the arc."""
-    m = inputs.shape[0]
     hp = grid.heading_cell_rad
     # The true start heading lies within eps_rad of the (estimated) cell.
     psi_lo = np.asarray(-math.pi + hp * np.arange(grid.npsi), dtype=np.float64) - eps_rad
     psi_hi = psi_lo + hp + 2.0 * eps_rad
     n_t = n_sub * per_sub
     t = np.linspace(0.0, horizon_s, n_t + 1)
-    dt = horizon_s / n_t
-    speed = np.hypot(inputs[:, 0], inputs[:, 1])  # (m,)
-    r_in = inputs[:, 2]
     boxes = _arc_boxes(displacement(inputs, t), psi_lo, psi_hi)  # (npsi, m, T, 4)
-    t_end = t[per_sub::per_sub]  # (n_sub,)
-    dev_sub = rho(t_end) + eps_m  # (m, n_sub): true position, start uncertain by eps
-    th_sub = theta(t_end)  # (n_sub,)
+    th_end = float(theta(t[-1:])[0])
+    first = min(math.floor(tau_s / (horizon_s / n_t) + 1e-9), n_t)
+    tube_x0, tube_n, tube_y = _swept_tube(
+        grid, inputs, t, boxes, psi_lo, psi_hi, rho, theta, eps_m, n_sub, per_sub
+    )
+    return _ClassTables(
+        succ=_successor_offsets(grid, inputs, t, boxes, first, rho, eps_m),
+        heading=_heading_range(inputs[:, 2], float(t[first]), horizon_s, th_end, eps_rad, hp),
+        tube_x0=tube_x0,
+        tube_n=tube_n,
+        tube_y=tube_y,
+        hull_psi=_hull_headings(inputs[:, 2], psi_lo, psi_hi, horizon_s, th_end),
+    )
 
-    # Successor: every end time in [tau, tau + late], padded for the deviation and, once
-    # more, for the estimate (the next decision's cell is the estimated one).
-    first = min(math.floor(tau_s / dt + 1e-9), n_t)
+
+def _successor_offsets(
+    grid: Grid,
+    inputs: FloatArray,
+    t: FloatArray,
+    boxes: FloatArray,
+    first: int,
+    rho: Callable[[FloatArray], FloatArray],
+    eps_m: float,
+) -> I32Array:
+    """Return the successor's cell offsets (x0, x1, y0, y1), shape (npsi, m, 4).
+
+    Every end time t[first:] in [tau, tau + late], padded for the deviation and, once
+    more, for the estimate (the next decision's cell is the estimated one).
+    """
+    dt = float(t[-1]) / (t.shape[0] - 1)  # the step of t (s), as linspace made it
+    speed = np.hypot(inputs[:, 0], inputs[:, 1])  # (m,)
     ends = boxes[:, :, first:, :]
     between_end = speed[None, :] * dt / 2.0 if ends.shape[2] > 1 else 0.0
     pad_end = (rho(t[-1:])[:, 0] + 2.0 * eps_m)[None, :] + between_end
@@ -336,20 +356,54 @@ def _class_tables(
     sy0, sy1 = _offsets(
         ends[..., 2].min(axis=2) - pad_end, ends[..., 3].max(axis=2) + pad_end, grid.cell_y_m
     )
-    succ = np.stack([sx0, sx1, sy0, sy1], axis=-1).astype(np.int32)
-    th_end = float(theta(t[-1:])[0])
-    t_first = float(t[first])
+    out: I32Array = np.stack([sx0, sx1, sy0, sy1], axis=-1).astype(np.int32)
+    return out
+
+
+def _heading_range(
+    r_in: FloatArray, t_first: float, horizon_s: float, th_end: float, eps_rad: float, hp: float
+) -> I32Array:
+    """Return the successor's heading-cell offsets (lower, upper) per input, shape (m, 2).
+
+    r_in: yaw rates (m,) (rad/s); t_first: the first end time (s); th_end: the heading
+    deviation bound at the horizon (rad); hp: the heading cell (rad).
+    """
     turn_min = np.minimum(r_in * t_first, r_in * horizon_s)
     turn_max = np.maximum(r_in * t_first, r_in * horizon_s)
-    heading = np.stack(
+    out: I32Array = np.stack(
         [
             _heading_offsets((turn_min - th_end - 2.0 * eps_rad) / hp, lower=True),
             _heading_offsets((turn_max + th_end + 2.0 * eps_rad) / hp, lower=False),
         ],
         axis=-1,
     ).astype(np.int32)
+    return out
 
-    # Swept tube: one box per sub-interval, then the hull of their cells per x column.
+
+def _swept_tube(
+    grid: Grid,
+    inputs: FloatArray,
+    t: FloatArray,
+    boxes: FloatArray,
+    psi_lo: FloatArray,
+    psi_hi: FloatArray,
+    rho: Callable[[FloatArray], FloatArray],
+    theta: Callable[[FloatArray], FloatArray],
+    eps_m: float,
+    n_sub: int,
+    per_sub: int,
+) -> tuple[I32Array, I32Array, I32Array]:
+    """Return the swept tube as (x0 (npsi, m), n columns (npsi, m), y ranges (npsi, m, c, 2)).
+
+    One box per sub-interval of per_sub samples, padded for the deviation and for the
+    motion between samples, then the hull of their cells per x column.
+    """
+    m = inputs.shape[0]
+    n_t = n_sub * per_sub
+    dt = float(t[-1]) / (t.shape[0] - 1)  # the step of t (s), as linspace made it
+    t_end = t[per_sub::per_sub]  # (n_sub,)
+    dev = (rho(t_end) + eps_m)[None]  # (1, m, n_sub): true position, start uncertain by eps
+    th_sub = theta(t_end)  # (n_sub,)
     sub = boxes[:, :, :n_t, :].reshape(grid.npsi, m, n_sub, per_sub, 4)
     last = boxes[:, :, per_sub::per_sub, :][:, :, :, None, :]  # closing sample of each span
     sub = np.concatenate([sub, last], axis=3)
@@ -357,50 +411,62 @@ def _class_tables(
     lo_y, hi_y = sub[..., 2].min(axis=3), sub[..., 3].max(axis=3)
     # World velocity direction over each span, for every psi0 in the cell: [lo, hi] (rad).
     beta = np.arctan2(inputs[:, 1], inputs[:, 0])[None, :, None]
-    r = r_in[None, :, None]
+    r = inputs[:, 2][None, :, None]
     t_start = t[:-1:per_sub][None, None, :]
     te = t_end[None, None, :]
     turn_lo = np.minimum(r * t_start, r * te) - th_sub[None, None, :]
     turn_hi = np.maximum(r * t_start, r * te) + th_sub[None, None, :]
     dir_lo = psi_lo[:, None, None] + beta + turn_lo
     dir_hi = psi_hi[:, None, None] + beta + turn_hi
-    dev = dev_sub[None]  # (1, m, n_sub)
-    between = speed[None, :, None] * dt / 2.0
+    between = np.hypot(inputs[:, 0], inputs[:, 1])[None, :, None] * dt / 2.0
     pad_x = dev + np.where(_contains_angle(dir_lo, dir_hi, 0.5 * math.pi), between, 0.0)
     pad_y = dev + np.where(_contains_angle(dir_lo, dir_hi, 0.0), between, 0.0)
     bx0, bx1 = _offsets(lo_x - pad_x, hi_x + pad_x, grid.cell_x_m)
     by0, by1 = _offsets(lo_y - pad_y, hi_y + pad_y, grid.cell_y_m)
     tube_x0 = bx0.min(axis=2)
     tube_n = bx1.max(axis=2) - tube_x0 + 1
+    return tube_x0.astype(np.int32), tube_n.astype(np.int32), _tube_columns(
+        bx0, bx1, by0, by1, tube_x0, tube_n
+    )
+
+
+def _tube_columns(
+    bx0: I32Array, bx1: I32Array, by0: I32Array, by1: I32Array, tube_x0: I32Array, tube_n: I32Array
+) -> I32Array:
+    """Return each tube column's y cell range, shape (npsi, m, c, 2), from the span boxes.
+
+    b*: the span boxes' cell bounds, (npsi, m, n_sub); tube_x0, tube_n: the tube's first
+    x column and column count, (npsi, m). Columns past a tube's end are 0 (never read).
+    """
     c_max = int(tube_n.max())
     big = np.iinfo(np.int32).max
-    tube_y = np.empty((grid.npsi, m, c_max, 2), dtype=np.int32)
+    tube_y = np.empty((*tube_x0.shape, c_max, 2), dtype=np.int32)
     for c in range(c_max):
         col = (tube_x0 + c)[..., None]
         covers = (bx0 <= col) & (col <= bx1)
         tube_y[..., c, 0] = np.where(covers, by0, big).min(axis=2)
         tube_y[..., c, 1] = np.where(covers, by1, -big).max(axis=2)
     unused = np.arange(c_max)[None, None, :] >= tube_n[..., None]
-    tube_y[unused] = 0  # columns past a tube's end are never read
+    tube_y[unused] = 0
+    return tube_y
 
-    # Headings the hull may take over the whole period, per yaw-rate value.
+
+def _hull_headings(
+    r_in: FloatArray, psi_lo: FloatArray, psi_hi: FloatArray, horizon_s: float, th_end: float
+) -> FloatArray:
+    """Return the headings the hull may take over the period, (npsi, n_yaw, 2) (rad).
+
+    One [lo, hi] per heading cell (psi_lo, psi_hi (npsi,)) and distinct yaw rate of r_in.
+    """
     yaw_values = np.unique(r_in)
     turn_all_lo = np.minimum(0.0, yaw_values * horizon_s) - th_end
     turn_all_hi = np.maximum(0.0, yaw_values * horizon_s) + th_end
-    hull_psi = np.stack(
+    return np.stack(
         [
             psi_lo[:, None] + turn_all_lo[None, :],
             psi_hi[:, None] + turn_all_hi[None, :],
         ],
         axis=-1,
-    )
-    return _ClassTables(
-        succ=succ,
-        heading=heading,
-        tube_x0=tube_x0.astype(np.int32),
-        tube_n=tube_n.astype(np.int32),
-        tube_y=tube_y,
-        hull_psi=hull_psi,
     )
 
 
