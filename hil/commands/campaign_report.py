@@ -24,7 +24,7 @@ if TYPE_CHECKING:
     from rich.console import Console
     from rich.table import Table
 
-    from hil.runs.campaign import CampaignResult, CampaignRun
+    from hil.runs.campaign import CampaignResult, CampaignRun, CampaignStats
     from hil.runs.sim_run import SimRunSpec
 
 
@@ -90,9 +90,7 @@ def report(outcome: CampaignResult, *, command: str, title: str, console: Consol
     130 stopped by Ctrl-C; 3 the Dask scheduler went away (both keep the finished runs
     in `results`, reported too).
     """
-    from rich.table import Table
-
-    from hil.runs.campaign import PAPER_TANK_MINUTES, CampaignStats
+    from hil.runs.campaign import CampaignStats
     from hil.runs.guarantee import GuaranteeViolations
 
     results_note = f"; results: {results} (continue with --resume {results})" if results else ""
@@ -108,6 +106,33 @@ def report(outcome: CampaignResult, *, command: str, title: str, console: Consol
               [r for r, s in zip(runs, specs, strict=True) if s.start_velocity is not None]]
     all_stats = [CampaignStats.of([summary for summary, _ in g]) for g in groups]
     stats = all_stats[0]
+    console.print(_figures_table(outcome, title, groups, all_stats))
+    if outcome.resumed or outcome.retried:
+        console.print(f"{outcome.resumed} run(s) read back from the results file, "
+                      f"{outcome.retried} re-run after their worker died")
+    if as_json:
+        print(json.dumps(_report_json(outcome, groups, all_stats, extra, results)))
+    if outcome.stopped:
+        print(f"hil {command}: {outcome.reason}: stopped after {len(runs)} of "
+              f"{outcome.planned} runs; the figures above are the finished runs{results_note}",
+              file=sys.stderr)
+        return _stopped_status(outcome.reason)
+    if results is not None:
+        console.print(f"results: {results}")
+    violations = GuaranteeViolations.total(g for _, g in runs).violations
+    ok = (stats.docked == stats.winning_starts and stats.contacts == 0 and violations == 0
+          and not outcome.failures)
+    return 0 if ok else 1
+
+
+def _figures_table(outcome: CampaignResult, title: str, groups: list[list[CampaignRun]],
+                   all_stats: list[CampaignStats]) -> Table:
+    """Return the figures of all runs, those started at rest and moving, beside the paper's."""
+    from rich.table import Table
+
+    from hil.runs.campaign import PAPER_TANK_MINUTES
+
+    runs, specs, stats = outcome.runs, outcome.specs, all_stats[0]
     stopped = (f", STOPPED after {len(runs)} of {outcome.planned} runs"
                if outcome.stopped else "")
     failed = f", {len(outcome.failures)} FAILED" if outcome.failures else ""
@@ -141,44 +166,35 @@ def report(outcome: CampaignResult, *, command: str, title: str, console: Consol
                           f"{figures['docked']}/{figures['winning_starts']} / "
                           f"{figures['runs_with_violations']}", "-", "-", "-")
     table.add_row("wall time per run", *(f"{s.wall_s_mean:.2f} s" for s in all_stats), "-")
-    console.print(table)
-    if outcome.resumed or outcome.retried:
-        console.print(f"{outcome.resumed} run(s) read back from the results file, "
-                      f"{outcome.retried} re-run after their worker died")
-    if as_json:
-        total = GuaranteeViolations.total(g for _, g in runs)
-        per_run = [{"seed": spec.seed, "scenario": spec.scenario, "start": list(spec.start or ()),
-                    "start_velocity": None if spec.start_velocity is None
-                    else list(spec.start_velocity),
-                    "select": spec.select,
-                    "docked": summary.docked, "docking_time_s": summary.docking_time_s,
-                    "guarantee": asdict(g)}
-                   for spec, (summary, g) in zip(specs, runs, strict=True)]
-        print(json.dumps({**asdict(stats), **extra,
-                          "at_rest": asdict(all_stats[1]), "moving_starts": asdict(all_stats[2]),
-                          "guarantee": asdict(total),
-                          "guarantee_at_rest": asdict(
-                              GuaranteeViolations.total(g for _, g in groups[1])),
-                          "guarantee_moving": asdict(
-                              GuaranteeViolations.total(g for _, g in groups[2])),
-                          "runs_with_violations": sum(g.violations > 0 for _, g in runs),
-                          "planned_runs": outcome.planned, "stopped": outcome.stopped,
-                          "failed_runs": [{"run": f.index, "error": f.error, "spec": f.spec}
-                                          for f in outcome.failures],
-                          "results": None if results is None else str(results),
-                          "per_policy": _per_policy(runs, specs),
-                          "per_run": per_run}))
-    if outcome.stopped:
-        print(f"hil {command}: {outcome.reason}: stopped after {len(runs)} of "
-              f"{outcome.planned} runs; the figures above are the finished runs{results_note}",
-              file=sys.stderr)
-        return _stopped_status(outcome.reason)
-    if results is not None:
-        console.print(f"results: {results}")
-    violations = GuaranteeViolations.total(g for _, g in runs).violations
-    ok = (stats.docked == stats.winning_starts and stats.contacts == 0 and violations == 0
-          and not outcome.failures)
-    return 0 if ok else 1
+    return table
+
+
+def _report_json(outcome: CampaignResult, groups: list[list[CampaignRun]],
+                 all_stats: list[CampaignStats], extra: dict[str, Any],
+                 results: Path | None) -> dict[str, Any]:
+    """Return the JSON report: the figures of each group, the guarantee's, each run's."""
+    from hil.runs.guarantee import GuaranteeViolations
+
+    runs, specs = outcome.runs, outcome.specs
+    per_run = [{"seed": spec.seed, "scenario": spec.scenario, "start": list(spec.start or ()),
+                "start_velocity": None if spec.start_velocity is None
+                else list(spec.start_velocity),
+                "select": spec.select,
+                "docked": summary.docked, "docking_time_s": summary.docking_time_s,
+                "guarantee": asdict(g)}
+               for spec, (summary, g) in zip(specs, runs, strict=True)]
+    return {**asdict(all_stats[0]), **extra,
+            "at_rest": asdict(all_stats[1]), "moving_starts": asdict(all_stats[2]),
+            "guarantee": asdict(GuaranteeViolations.total(g for _, g in runs)),
+            "guarantee_at_rest": asdict(GuaranteeViolations.total(g for _, g in groups[1])),
+            "guarantee_moving": asdict(GuaranteeViolations.total(g for _, g in groups[2])),
+            "runs_with_violations": sum(g.violations > 0 for _, g in runs),
+            "planned_runs": outcome.planned, "stopped": outcome.stopped,
+            "failed_runs": [{"run": f.index, "error": f.error, "spec": f.spec}
+                            for f in outcome.failures],
+            "results": None if results is None else str(results),
+            "per_policy": _per_policy(runs, specs),
+            "per_run": per_run}
 
 
 def _stopped_status(reason: str) -> int:

@@ -17,6 +17,7 @@ import argparse
 import dataclasses
 import functools
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
@@ -228,37 +229,20 @@ def _replay_here(progress: ReplayProgress, task: ReplayTask) -> LogReport:
     return replay_log(task.path, task.options, caches, progress=progress.step(Path(task.path)))
 
 
-def run(args: argparse.Namespace) -> int:
-    """Replay every log, print the reports; return 0, 1 (regression) or 2 (bad log)."""
-    Stages("hil replay").say(f"replaying {len(args.logs)} log argument(s) ...")
+def _replay_options(args: argparse.Namespace) -> ReplayOptions:
+    """Return the replay's options from the command line.
+
+    Raises:
+        ValueError: A bad --tolerance, --pose-delay-ms or --config.
+    """
     from hil.adapters.log import LogConfig
-    from hil.replay.job import REPLAY_JOB, process_caches, task_for
     from hil.replay.lab import load_lab_config
     from hil.replay.options import ReplayOptions, Tolerance
-    from hil.replay.regression import (
-        LogReport,
-        exit_code,
-        jsonl_lines,
-        junit_xml,
-        render,
-        summary_json,
-        verdict_jsonl,
-        verdict_line,
-    )
-    from hil.runs.backends import open_executor, require_backend
-    from hil.runs.errors import ExecutorError
-    from hil.runs.fanout import Failure, fan_out
 
-    choice = executor_choice(args)
-    try:
-        require_backend(choice)
-        tolerance = Tolerance.parse(args.tolerance)
-        log_config = LogConfig(pose_delay_ns=round(args.pose_delay_ms * 1e6))
-        lab, lab_loop = load_lab_config(args.config)
-    except (ValueError, ExecutorError) as err:
-        print(f"hil replay: error: {_one_line(err)}", file=sys.stderr)
-        return 2
-    options = ReplayOptions(
+    tolerance = Tolerance.parse(args.tolerance)
+    log_config = LogConfig(pose_delay_ns=round(args.pose_delay_ms * 1e6))
+    lab, lab_loop = load_lab_config(args.config)
+    return ReplayOptions(
         tolerance=tolerance,
         stack=not args.no_stack,
         resim=args.resim,
@@ -268,73 +252,72 @@ def run(args: argparse.Namespace) -> int:
         lab=lab,
         lab_loop=lab_loop,
     )
-    jsonl: TextIO | None = None
-    if args.jsonl is not None:
-        try:
-            jsonl = _open_jsonl(args.jsonl)
-        except OSError as err:
-            where = repr(str(args.jsonl))
-            print(f"hil replay: error: cannot write {where}: {_one_line(err)}", file=sys.stderr)
-            return 2
-    # The reports go to stdout, or to stderr when stdout carries JSON.
-    to_stderr = args.json or (jsonl is sys.stdout)
 
-    def emit(text: str) -> None:
-        print(text, file=sys.stderr if to_stderr else sys.stdout, flush=True)
 
-    caches = process_caches()  # shared with the replays run in this process
-    reports: list[LogReport] = []
-    logs, skipped = expand(list(args.logs))
-    for path, why in skipped:
-        emit(f"skipped {path}: {why}")
-    if not logs:
-        print(
-            f"hil replay: error: no bag among {len(args.logs)} argument(s) "
-            f"({', '.join(str(p) for p in args.logs[:3])}{', ...' if len(args.logs) > 3 else ''})",
-            file=sys.stderr,
-        )
-    tasks = [task_for(path, options, ship=choice.scheduler is not None) for path in logs]
-    done: dict[int, LogReport] = {}
+@dataclasses.dataclass
+class _InOrderPrinter:
+    """Prints each finished log's report in argument order, as the replays end in any order.
 
-    def ended(index: int, outcome: object) -> None:
+    Attributes:
+        logs: The logs being replayed, in order.
+        emit: Where the readable reports go (stdout, or stderr when stdout carries JSON).
+        progress: The progress display, told of each log done.
+        jsonl: The --jsonl stream, or None.
+        rerun: The --rerun folder, or None.
+        caches: The scenario caches of this process (for --rerun).
+        options: The replay's options (for --rerun).
+        reports: The reports printed so far, in order.
+    """
+
+    logs: list[Path]
+    emit: Callable[[str], None]
+    progress: ReplayProgress
+    jsonl: TextIO | None
+    rerun: Path | None
+    caches: ScenarioCache
+    options: ReplayOptions
+    reports: list[LogReport] = dataclasses.field(default_factory=list)
+    _done: dict[int, LogReport] = dataclasses.field(default_factory=dict)
+
+    def __call__(self, index: int, outcome: object) -> None:
         """Keep a finished log; print every log up to the first still running, in order."""
+        from hil.replay.regression import LogReport, jsonl_lines, render
+        from hil.runs.fanout import Failure
+
         if isinstance(outcome, Failure):  # the last guard: one line, never a traceback
-            outcome = LogReport(str(logs[index]), error=f"internal error: {outcome.error}")
+            outcome = LogReport(str(self.logs[index]), error=f"internal error: {outcome.error}")
         assert isinstance(outcome, LogReport)
-        done[index] = outcome
-        progress.done()
-        while len(reports) in done:
-            path, report = logs[len(reports)], done.pop(len(reports))
-            reports.append(report)
-            emit(render(report))
-            if args.rerun is not None and not report.error:
-                emit(f"  rerun: {_write_replay_rrd(path, args.rerun, caches, options, report)}")
+        self._done[index] = outcome
+        self.progress.done()
+        while len(self.reports) in self._done:
+            path, report = self.logs[len(self.reports)], self._done.pop(len(self.reports))
+            self.reports.append(report)
+            self.emit(render(report))
+            if self.rerun is not None and not report.error:
+                written = _write_replay_rrd(path, self.rerun, self.caches, self.options, report)
+                self.emit(f"  rerun: {written}")
             if report.error:
                 print(f"hil replay: error: {report.path}: {report.error}", file=sys.stderr)
-            if jsonl is not None:
-                jsonl.write("".join(line + "\n" for line in jsonl_lines(report)))
-                jsonl.flush()
+            if self.jsonl is not None:
+                self.jsonl.write("".join(line + "\n" for line in jsonl_lines(report)))
+                self.jsonl.flush()
 
-    try:
-        executor = open_executor(choice, REPLAY_JOB.warm)
-    except ExecutorError as err:
-        print(f"hil replay: error: {err}", file=sys.stderr)
-        return 2
-    # Only a replay in this process can show each log's step; workers report logs done.
-    progress = ReplayProgress(len(logs))
-    here = choice.scheduler is None and not choice.dask and choice.workers == 1
-    job = REPLAY_JOB
-    if here:
-        job = dataclasses.replace(REPLAY_JOB, run=functools.partial(_replay_here, progress))
-    with progress, executor:
-        if executor.dashboard:
-            emit(f"Dask dashboard: {executor.dashboard}")
-        outcome = fan_out(job, tasks, executor, report=ended)
-    if outcome.stopped:
-        print(f"hil replay: {outcome.stopped}: {len(reports)} of {len(logs)} logs replayed",
-              file=sys.stderr)
-        if not reports:
-            return 2
+
+def _finish(
+    args: argparse.Namespace,
+    reports: list[LogReport],
+    jsonl: TextIO | None,
+    emit: Callable[[str], None],
+) -> int:
+    """Write --junit and the --jsonl verdict, print the verdict and --json; return the status."""
+    from hil.replay.regression import (
+        exit_code,
+        junit_xml,
+        summary_json,
+        verdict_jsonl,
+        verdict_line,
+    )
+
     code = exit_code(reports)
     if args.junit is not None:
         try:
@@ -351,3 +334,67 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(summary_json(reports))
     return code
+
+
+def run(args: argparse.Namespace) -> int:
+    """Replay every log, print the reports; return 0, 1 (regression) or 2 (bad log)."""
+    Stages("hil replay").say(f"replaying {len(args.logs)} log argument(s) ...")
+    from hil.replay.job import REPLAY_JOB, process_caches, task_for
+    from hil.runs.backends import open_executor, require_backend
+    from hil.runs.errors import ExecutorError
+    from hil.runs.fanout import fan_out
+
+    choice = executor_choice(args)
+    try:
+        require_backend(choice)
+        options = _replay_options(args)
+    except (ValueError, ExecutorError) as err:
+        print(f"hil replay: error: {_one_line(err)}", file=sys.stderr)
+        return 2
+    jsonl: TextIO | None = None
+    if args.jsonl is not None:
+        try:
+            jsonl = _open_jsonl(args.jsonl)
+        except OSError as err:
+            where = repr(str(args.jsonl))
+            print(f"hil replay: error: cannot write {where}: {_one_line(err)}", file=sys.stderr)
+            return 2
+    # The reports go to stdout, or to stderr when stdout carries JSON.
+    to_stderr = args.json or (jsonl is sys.stdout)
+
+    def emit(text: str) -> None:
+        print(text, file=sys.stderr if to_stderr else sys.stdout, flush=True)
+
+    caches = process_caches()  # shared with the replays run in this process
+    logs, skipped = expand(list(args.logs))
+    for path, why in skipped:
+        emit(f"skipped {path}: {why}")
+    if not logs:
+        print(
+            f"hil replay: error: no bag among {len(args.logs)} argument(s) "
+            f"({', '.join(str(p) for p in args.logs[:3])}{', ...' if len(args.logs) > 3 else ''})",
+            file=sys.stderr,
+        )
+    tasks = [task_for(path, options, ship=choice.scheduler is not None) for path in logs]
+    try:
+        executor = open_executor(choice, REPLAY_JOB.warm)
+    except ExecutorError as err:
+        print(f"hil replay: error: {err}", file=sys.stderr)
+        return 2
+    # Only a replay in this process can show each log's step; workers report logs done.
+    progress = ReplayProgress(len(logs))
+    printer = _InOrderPrinter(logs, emit, progress, jsonl, args.rerun, caches, options)
+    here = choice.scheduler is None and not choice.dask and choice.workers == 1
+    job = REPLAY_JOB
+    if here:
+        job = dataclasses.replace(REPLAY_JOB, run=functools.partial(_replay_here, progress))
+    with progress, executor:
+        if executor.dashboard:
+            emit(f"Dask dashboard: {executor.dashboard}")
+        outcome = fan_out(job, tasks, executor, report=printer)
+    if outcome.stopped:
+        print(f"hil replay: {outcome.stopped}: {len(printer.reports)} of {len(logs)} logs "
+              "replayed", file=sys.stderr)
+        if not printer.reports:
+            return 2
+    return _finish(args, printer.reports, jsonl, emit)
