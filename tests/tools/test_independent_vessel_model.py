@@ -7,27 +7,21 @@ command rate limit, the pod slew, and the steady surge speed under full forward 
 
 from __future__ import annotations
 
-import importlib.util
 import math
-import sys
 from pathlib import Path
 from types import ModuleType
 
 import numpy as np
 import pytest
 
+from tests.tools.tool_loader import load_tool
+
 PATH = Path(__file__).resolve().parents[2] / "tools" / "independent_vessel.py"
 
 
 @pytest.fixture(scope="module")
 def iv() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("independent_vessel", PATH)
-    assert spec is not None
-    assert spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["independent_vessel"] = module  # dataclasses look their module up
-    spec.loader.exec_module(module)
-    return module
+    return load_tool("independent_vessel")
 
 
 def test_it_imports_nothing_of_hil() -> None:

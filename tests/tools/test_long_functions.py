@@ -2,29 +2,23 @@
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
 from types import ModuleType
 
 import pytest
 
-PATH = Path(__file__).resolve().parents[2] / "tools" / "long_functions.py"
+from tests.tools.tool_loader import load_tool
+
+HIL = Path(__file__).resolve().parents[2] / "hil"
 
 
 @pytest.fixture(scope="module")
 def lf() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("long_functions", PATH)
-    assert spec is not None
-    assert spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["long_functions"] = module  # dataclasses look their module up
-    spec.loader.exec_module(module)
-    return module
+    return load_tool("long_functions")
 
 
 def test_no_function_in_hil_is_over_80_lines(lf: ModuleType) -> None:
-    found = lf.long_functions([PATH.parents[1] / "hil"], 80)
+    found = lf.long_functions([HIL], 80)
     offenders = [f"{f.path}:{f.line} {f.name} ({f.length} lines)" for f in found if not f.exempt]
     assert offenders == []
 
