@@ -7,6 +7,7 @@ so a run interrupted on the tank still leaves a complete bag.
 
 from __future__ import annotations
 
+import functools
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -16,15 +17,19 @@ from pathlib import Path
 
 import numpy as np
 
+from hil.adapters.feed_health import FeedHealth, Rejection, RejectReason
+from hil.adapters.feed_tape import Heard
 from hil.adapters.interfaces import ObstacleSource, PoseSource
 from hil.adapters.obstacles import StaticObstacleSource
 from hil.adapters.qtm import QtmConfig, QtmPoseSource, qtm_config_from_table
-from hil.adapters.ros import RosConfig, RosWorld
+from hil.adapters.ros import RosBackendError, RosConfig, RosWorld
 from hil.bag.recorder import Recorder
 from hil.bag.run_info import RunInfo
 from hil.core.config import ConfigError, from_table, load_toml
 from hil.core.config_doc import config_toml
 from hil.runs.feed_watch import FeedWatch
+from hil.runs.live_diagnostics import FeedView
+from hil.runs.live_telemetry import TelemetryLog
 from hil.runs.sim_run import LiveView
 from hil.runs.stack_assembly import build_runtime, scenario_hash, synthesizer_for
 from hil.runs.summary import RunSummary, summarize_run
@@ -185,6 +190,48 @@ def _wait_for_pose(pose: _PoseFeed, feeds: FeedWatch, progress: Progress) -> str
     return stopped[0] if stopped else None
 
 
+def _telemetry(closing: ExitStack, ros: RosWorld, log: RunLog) -> RunLog:
+    """Return `log` teed to the live topics (``[ros] live_telemetry``), closed by `closing`."""
+    if not ros.config.live_telemetry:
+        return log
+    assert ros.clock is not None
+    clock = ros.clock
+    try:
+        telemetry = TelemetryLog(log, ros.node, clock.now_ns)
+    except ImportError as err:
+        raise RosBackendError(
+            f"the live telemetry needs std_msgs, rcl_interfaces and diagnostic_msgs ({err}): "
+            "install the 'ros' extra, or set [ros] live_telemetry = false") from err
+    closing.callback(telemetry.close)
+    return telemetry
+
+
+def _qtm_health(source: QtmPoseSource) -> FeedHealth:
+    """Return the QTM feed's counters as a feed's health (the runtime knows the newest pose)."""
+    c, cfg = source.counters, source.config
+    lost = (Rejection(RejectReason.NOT_FINITE, c.lost, f"frames with body {cfg.body!r} lost",
+                      "check the cameras see the vessel's rigid body"),) if c.lost else ()
+    return FeedHealth(f"qtm://{cfg.host}:{cfg.port}/{cfg.body}", "poses", c.frames, c.poses, lost)
+
+
+def _pose_feed(closing: ExitStack, config: VesselConfig, ros: RosWorld, log: RunLog,
+               feeds: FeedWatch) -> tuple[PoseSource, _PoseFeed, FeedView]:
+    """Return where the run's poses come from: the ROS topic, or QTM with a ``[qtm]`` table."""
+    pose_health = ros.pose_health
+    heard: Callable[[int], tuple[Heard, Heard]] | None = ros.heard
+    source: PoseSource = ros.pose_source
+    pose = _ros_pose(ros, config.ros.topics.pose, feeds)
+    if config.qtm is not None:
+        assert ros.clock is not None
+        qtm = closing.enter_context(QtmPoseSource(
+            config.qtm, ros.clock, on_event=lambda e: log.event(e.t_ns, e.level, e.code, e.text),
+        ))  # fmt: skip
+        source, pose, heard = qtm, _qtm_pose(qtm), None
+        pose_health = functools.partial(_qtm_health, qtm)
+    return source, pose, FeedView(pose_health, ros.imu_health, heard, config.ros.pose_frame_id,
+                                  config.ros.use_sim_time)
+
+
 def run_on_ros(config: VesselConfig, out_dir: Path | None = None,
                progress: Progress = _quiet, live: LiveView | None = None) -> RunSummary:
     """Run the stack against the vessel over ROS 2 until docked, stopped or timed out.
@@ -214,20 +261,15 @@ def run_on_ros(config: VesselConfig, out_dir: Path | None = None,
                                      backend="ros")) as recorder, ExitStack() as closing:
         assert ros.clock is not None
         assert ros.thruster_sink is not None
-        feeds = FeedWatch(ros, recorder, progress)
+        log = _telemetry(closing, ros, recorder if live is None else live(scenario, recorder))
+        feeds = FeedWatch(ros, log, progress)
         obstacles: ObstacleSource = ros.obstacle_source or StaticObstacleSource(layout)
-        pose_source: PoseSource = ros.pose_source
-        pose = _ros_pose(ros, config.ros.topics.pose, feeds)
-        if config.qtm is not None:
-            qtm = closing.enter_context(QtmPoseSource(
-                config.qtm, ros.clock,
-                on_event=lambda e: recorder.event(e.t_ns, e.level, e.code, e.text),
-            ))  # fmt: skip
-            pose_source, pose = qtm, _qtm_pose(qtm)
+        pose_source, pose, feed_view = _pose_feed(closing, config, ros, log, feeds)
         world = World(ros.clock, pose_source, ros.imu_source, obstacles, ros.thruster_sink)
-        log: RunLog = recorder if live is None else live(scenario, recorder)
         runtime = build_runtime(scenario, world, log, config.loop, synthesizer,
                                 ResynthesisMode.THREAD)
+        if isinstance(log, TelemetryLog):
+            log.watch(runtime, feed_view, config.ros.node_name)
         # Compile and synthesize before the loop starts, so its first ticks keep time.
         progress("synthesizing the controller...")
         # A signal while synthesizing (seconds) stops the run at its first tick, with
