@@ -28,7 +28,7 @@ from hil.runs.feed_check import (
     series_of,
 )
 from hil.runs.stack_assembly import synthesizer_for
-from hil.runs.vessel_run import VesselConfig
+from hil.runs.vessel_config import VesselConfig
 from hil.runtime.assembly import LayoutSolver, layout_from_scenario
 from hil.runtime.protocols import SymbolicController
 from hil.scenarios import Scenario, load_scenario
