@@ -81,6 +81,7 @@ class FeedHealth:
         received: Messages delivered to the subscription.
         accepted: Messages turned into samples.
         rejections: Refusals by reason, in :class:`RejectReason` order.
+        last_ns: Stamp of the newest sample accepted (ns); None: none yet.
     """
 
     topic: str
@@ -88,6 +89,7 @@ class FeedHealth:
     received: int
     accepted: int
     rejections: tuple[Rejection, ...]
+    last_ns: int | None = None
 
     @property
     def rejected(self) -> int:
@@ -126,6 +128,7 @@ class FeedMonitor:
         self._lock = threading.Lock()
         self._received = 0
         self._accepted = 0
+        self._last_ns: int | None = None
         self._counts: dict[RejectReason, int] = {}
         self._latest: dict[RejectReason, Refusal] = {}
 
@@ -134,10 +137,11 @@ class FeedMonitor:
         with self._lock:
             self._received += 1
 
-    def accepted(self) -> None:
-        """Count one message turned into a sample."""
+    def accepted(self, stamp_ns: int) -> None:
+        """Count one message turned into a sample stamped `stamp_ns` (ns)."""
         with self._lock:
             self._accepted += 1
+            self._last_ns = stamp_ns if self._last_ns is None else max(self._last_ns, stamp_ns)
 
     def refused(self, refusal: Refusal, count: int | None = None) -> None:
         """Count one refusal, or set its total to `count` (DDS keeps the QoS totals)."""
@@ -153,7 +157,8 @@ class FeedMonitor:
                 Rejection(reason, self._counts[reason], self._latest[reason].detail,
                           self._latest[reason].fix)
                 for reason in RejectReason if reason in self._counts)
-            return FeedHealth(self.topic, self.noun, self._received, self._accepted, rejections)
+            return FeedHealth(self.topic, self.noun, self._received, self._accepted, rejections,
+                              self._last_ns)
 
 
 def qos_refusal(policy: str, best_effort: bool) -> Refusal:

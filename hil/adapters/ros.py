@@ -10,9 +10,7 @@ attributes, so they serve rclpy messages and `rosbags` messages alike.
 
 from __future__ import annotations
 
-import contextlib
 import math
-import os
 import re
 import threading
 import time
@@ -31,7 +29,16 @@ from hil.adapters.feed_health import (
     qos_refusal,
     time_refusal,
 )
+from hil.adapters.feed_tape import FeedTape, Heard
 from hil.adapters.frames import ArenaTransform
+from hil.adapters.ros_context import (
+    MAX_DOMAIN_ID,
+    RosBackendError,
+    check_domain_id,
+    init_context,
+    spin_in_thread,
+    stop_spinning,
+)
 from hil.adapters.ros_messages import (
     fill_imu_msg,
     fill_pose_msg,
@@ -45,7 +52,8 @@ from hil.adapters.ros_messages import (
 from hil.core.clock import NS_PER_S
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, SampleError, ThrusterCommand
 
-# The message conversions live in ros_messages.py; they are part of this backend's API.
+# The message conversions live in ros_messages.py, starting and stopping rclpy in
+# ros_context.py; they are part of this backend's API.
 __all__ = [
     "MAX_DOMAIN_ID",
     "RosBackendError",
@@ -71,10 +79,6 @@ __all__ = [
     "thruster_command_from_components",
     "thruster_wrench_components",
 ]
-
-class RosBackendError(RuntimeError):
-    """The ROS 2 backend cannot start or lost its link."""
-
 
 @dataclass(frozen=True, slots=True)
 class RosTopics:
@@ -128,6 +132,8 @@ class RosConfig:
             command line: remapping rules (``-r /voyager/measurement/pose:=/mocap/pose``)
             and parameters (``-p use_sim_time:=true``); ``hil vessel ... --ros-args ...``
             appends its own.
+        live_telemetry: Publish the run's decisions, events and ``/diagnostics`` while
+            ``hil vessel`` runs (:mod:`hil.adapters.ros_telemetry`).
     """
 
     topics: RosTopics = field(default_factory=RosTopics)
@@ -139,6 +145,7 @@ class RosConfig:
     pose_frame_id: str = "world_ned"
     domain_id: int | None = None
     ros_args: tuple[str, ...] = ()
+    live_telemetry: bool = True
 
     def __post_init__(self) -> None:
         if self.qos_depth < 1:
@@ -154,23 +161,8 @@ class RosConfig:
 # letters, digits and underscores, not starting with a digit, joined by single "/".
 _TOPIC_NAME = re.compile(r"^(~/|/)?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*$")
 _NODE_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
-# DDS maps a domain to UDP ports; above 232 they leave the valid range (ROS 2 docs,
-# "The ROS_DOMAIN_ID").
-MAX_DOMAIN_ID = 232
-
-
-def check_domain_id(value: object, what: str) -> int:
-    """Return `value` as a ROS domain id, or raise ValueError naming `what` and the value."""
-    if isinstance(value, bool) or not isinstance(value, int | str):
-        raise ValueError(f"{what} must be an integer 0..{MAX_DOMAIN_ID}, got {value!r}")
-    try:
-        domain = int(value)
-    except ValueError:
-        domain = -1
-    if not 0 <= domain <= MAX_DOMAIN_ID:
-        raise ValueError(f"{what} must be an integer 0..{MAX_DOMAIN_ID}, got {value!r}")
-    return domain
-
+# Messages per sensor topic kept for the live diagnostics: 10 s of a 100-Hz feed.
+_TAPE_LENGTH = 1000
 
 class _SubscriptionQueue:
     """A thread-safe queue of samples from a subscription callback, with its feed's counters."""
@@ -179,6 +171,8 @@ class _SubscriptionQueue:
         self._items: deque[Any] = deque(maxlen=maxlen)
         self._lock = threading.Lock()
         self.monitor = monitor
+        self.tape = FeedTape(monitor.topic, maxlen=_TAPE_LENGTH)
+        """Every message's arrival, stamp, finiteness and frame, the newest few seconds."""
         self.last_ns: int | None = None
         """Stamp of the newest sample accepted (ns), for the out-of-order check."""
         self.arrived = threading.Event()
@@ -191,7 +185,7 @@ class _SubscriptionQueue:
         with self._lock:
             self._items.append(item)
             self.last_ns = item.t_ns
-        self.monitor.accepted()
+        self.monitor.accepted(item.t_ns)
         self.arrived.set()
 
     def drain(self) -> list[Any]:
@@ -359,66 +353,6 @@ class RosClock:
         return bool(self._node.get_clock().ros_time_is_active)
 
 
-def spin_in_thread(context: Any, node: Any, name: str) -> tuple[Any, threading.Thread]:
-    """Spin `node` on an executor of `context` in a daemon thread; return both.
-
-    The thread ends when the context shuts down (rclpy's ExternalShutdownException).
-    """
-    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
-
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
-
-    def spin() -> None:
-        with contextlib.suppress(ExternalShutdownException):
-            executor.spin()
-
-    thread = threading.Thread(target=spin, name=name, daemon=True)
-    thread.start()
-    return executor, thread
-
-
-def stop_spinning(context: Any, node: Any, executor: Any, thread: threading.Thread | None) -> None:
-    """Undo :func:`spin_in_thread`: stop the executor, destroy the node, shut the context."""
-    executor.shutdown()
-    node.destroy_node()
-    if context.ok():
-        context.try_shutdown()
-    if thread is not None:
-        thread.join(timeout=2.0)
-
-
-def init_context(
-    rclpy: Any, context: Any, domain_id: int | None, ros_args: tuple[str, ...] = ()
-) -> int:
-    """Initialize an rclpy context on `domain_id`, else on ROS_DOMAIN_ID (default 0).
-
-    `ros_args` (remapping rules and parameters, as after ``--ros-args``) apply to every
-    node of the context.
-
-    Returns:
-        The domain joined.
-
-    Raises:
-        RosBackendError: ROS_DOMAIN_ID is not a valid domain, or rclpy refused.
-    """
-    if domain_id is None:
-        try:
-            domain = check_domain_id(os.environ.get("ROS_DOMAIN_ID", "0") or "0",
-                                     "ROS_DOMAIN_ID")
-        except ValueError as err:
-            raise RosBackendError(str(err)) from err
-    else:
-        domain = domain_id
-    try:
-        args = ["hil", "--ros-args", *ros_args] if ros_args else None
-        rclpy.init(args=args, context=context, domain_id=domain)
-    except Exception as err:  # rclpy raises its own RCLError types
-        given = f" with --ros-args {' '.join(ros_args)}" if ros_args else ""
-        raise RosBackendError(f"cannot start ROS 2 on domain {domain!r}{given}: {err}") from err
-    return domain
-
-
 class RosWorld:
     """The stack's view of the vessel over ROS 2: pose, IMU, obstacles, thrusters, clock.
 
@@ -520,6 +454,18 @@ class RosWorld:
         """Return what the IMU topic delivered and refused so far, by reason."""
         return self._imu_inbox.monitor.snapshot()
 
+    def heard(self, since_ns: int | None = None) -> tuple[Heard, Heard]:
+        """Return the pose and IMU messages that arrived since `since_ns` (node clock, ns).
+
+        Only the newest few seconds are kept (:data:`_TAPE_LENGTH` messages per topic).
+        """
+        return self._pose_inbox.tape.heard(since_ns), self._imu_inbox.tape.heard(since_ns)
+
+    @property
+    def node(self) -> Any:
+        """The world's rclpy node, for publishers beside the thrusters' (None before open)."""
+        return self._node
+
     def publishers_on(self, topic: str) -> int:
         """Return how many publishers discovery has seen on `topic` (0 before :meth:`open`)."""
         return 0 if self._node is None else int(self._node.count_publishers(topic))
@@ -534,16 +480,25 @@ class RosWorld:
         inbox.monitor.refused(qos_refusal(policy, self.config.best_effort_sensors),
                               count=int(info.total_count))
 
-    def _time_refusal(self, inbox: _SubscriptionQueue, msg: Any) -> Refusal | None:
-        return time_refusal(stamp_to_ns(msg.header.stamp), inbox.last_ns,
-                            int(self._node.get_clock().now().nanoseconds),
+    def _arrived(self, inbox: _SubscriptionQueue, msg: Any, value: Refusal | None) -> int:
+        """Count and tape a message as it arrives; return the node clock's time (ns)."""
+        now_ns = int(self._node.get_clock().now().nanoseconds)
+        inbox.monitor.received()
+        finite = value is None or value.reason is not RejectReason.NOT_FINITE
+        inbox.tape.append(now_ns, stamp_to_ns(msg.header.stamp), finite,
+                          str(msg.header.frame_id))
+        return now_ns
+
+    def _time_refusal(self, inbox: _SubscriptionQueue, msg: Any, now_ns: int) -> Refusal | None:
+        return time_refusal(stamp_to_ns(msg.header.stamp), inbox.last_ns, now_ns,
                             self._stale_after_ns, self.config.use_sim_time)
 
     def _on_pose(self, msg: Any) -> None:
         inbox = self._pose_inbox
-        inbox.monitor.received()
+        value = pose_value_refusal(msg)
+        now_ns = self._arrived(inbox, msg, value)
         refusal = (frame_refusal(msg.header.frame_id, self.config.pose_frame_id)
-                   or pose_value_refusal(msg) or self._time_refusal(inbox, msg))
+                   or value or self._time_refusal(inbox, msg, now_ns))
         if refusal is None:
             try:
                 inbox.put(pose_from_msg(msg, self.config.transform))
@@ -555,8 +510,8 @@ class RosWorld:
 
     def _on_imu(self, msg: Any) -> None:
         inbox = self._imu_inbox
-        inbox.monitor.received()
-        refusal = imu_value_refusal(msg) or self._time_refusal(inbox, msg)
+        value = imu_value_refusal(msg)
+        refusal = value or self._time_refusal(inbox, msg, self._arrived(inbox, msg, value))
         if refusal is None:
             inbox.put(imu_from_msg(msg))
         else:

@@ -13,9 +13,9 @@ import functools
 import math
 import threading
 import time
-from dataclasses import dataclass
 from typing import Any
 
+from hil.adapters.feed_tape import FeedTape, Heard
 from hil.adapters.ros import (
     RosBackendError,
     RosConfig,
@@ -28,44 +28,6 @@ from hil.adapters.ros import (
 from hil.core.samples import PoseSample, SampleError
 
 __all__ = ["Heard", "RosListener"]
-
-
-@dataclass(frozen=True, slots=True)
-class Heard:
-    """What one topic delivered.
-
-    Attributes:
-        topic: The ROS topic.
-        arrival_ns: Node-clock arrival time of each message (ns), in order of arrival.
-        stamp_ns: Each message's header stamp (ns).
-        finite: Whether each message's values were all finite.
-        frame_ids: Each message's header.frame_id.
-        qos_refusals: Incompatible-QoS events (publishers the subscription cannot match).
-    """
-
-    topic: str
-    arrival_ns: tuple[int, ...]
-    stamp_ns: tuple[int, ...]
-    finite: tuple[bool, ...]
-    frame_ids: tuple[str, ...]
-    qos_refusals: int
-
-
-class _Tape:
-    """Per-message records of one subscription, appended from the executor thread."""
-
-    def __init__(self, topic: str) -> None:
-        self.topic = topic
-        self.rows: list[tuple[int, int, bool, str]] = []
-        self.qos_refusals = 0
-        self.lock = threading.Lock()
-
-    def heard(self) -> Heard:
-        with self.lock:
-            rows = list(self.rows)
-        arrival, stamp, finite, frames = zip(*rows, strict=True) if rows else ((), (), (), ())
-        return Heard(self.topic, tuple(arrival), tuple(stamp), tuple(finite), tuple(frames),
-                     self.qos_refusals)
 
 
 def _finite(*values: Any) -> bool:
@@ -84,9 +46,9 @@ class RosListener:
     def __init__(self, config: RosConfig) -> None:
         self.config = config
         topics = config.topics
-        self._tapes = {"pose": _Tape(topics.pose), "imu": _Tape(topics.imu)}
+        self._tapes = {"pose": FeedTape(topics.pose), "imu": FeedTape(topics.imu)}
         if topics.obstacles:
-            self._tapes["obstacles"] = _Tape(topics.obstacles)
+            self._tapes["obstacles"] = FeedTape(topics.obstacles)
         self._last_pose: Any = None
         self._context: Any = None
         self._node: Any = None
@@ -146,19 +108,16 @@ class RosListener:
                              msg.angular_velocity.z)
         else:
             finite = all(_finite(p.position.x, p.position.y) for p in msg.poses)
-        tape = self._tapes[name]
-        with tape.lock:
-            tape.rows.append((arrival, stamp_to_ns(msg.header.stamp), finite,
-                              str(msg.header.frame_id)))
+        self._tapes[name].append(arrival, stamp_to_ns(msg.header.stamp), finite,
+                                 str(msg.header.frame_id))
 
     def wait_first(self, name: str, timeout_s: float) -> bool:
         """Wait up to `timeout_s` (wall, s) for a message on `name`; return whether one came."""
         tape = self._tapes[name]
         end_s = time.monotonic() + timeout_s
         while True:
-            with tape.lock:
-                if tape.rows:
-                    return True
+            if len(tape):
+                return True
             if time.monotonic() >= end_s:
                 return False
             time.sleep(0.02)
@@ -166,8 +125,7 @@ class RosListener:
     def restart(self) -> None:
         """Forget the messages recorded so far (QoS refusals and the last pose are kept)."""
         for tape in self._tapes.values():
-            with tape.lock:
-                tape.rows.clear()
+            tape.clear()
 
     def heard(self, name: str) -> Heard | None:
         """Return what topic `name` ("pose", "imu", "obstacles") delivered; None: not listened."""

@@ -42,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
     from hil.bag.errors import ReplayError
     from hil.core.config import ConfigError
     from hil.replay.truth import judge_log_on_truth, load_truth
-    from hil.runs.vessel_run import VesselConfig
+    from hil.runs.vessel_config import VesselConfig
     from hil.scenarios import ScenarioError
 
     try:

@@ -40,12 +40,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Simulate until SIGINT/SIGTERM or the duration; 2 on bad input."""
+    # The first line, before the simulator's and rclpy's imports (a second or more).
+    named = args.scenario or ("of the config" if args.config else "paper")
+    print(f"hil sim-vessel: scenario {named}: loading the simulator and rclpy ...",
+          file=sys.stderr, flush=True)
     from hil.adapters.ros import RosBackendError, check_domain_id
     from hil.adapters.sim import SimConfig, SimWorld
     from hil.core.config import ConfigError
     from hil.runs.ros_vessel import SimVesselNode
     from hil.runs.stack_assembly import default_start
-    from hil.runs.vessel_run import VesselConfig
+    from hil.runs.vessel_config import VesselConfig
     from hil.runtime.assembly import layout_from_scenario
     from hil.scenarios import ScenarioError, check_start, load_scenario
 

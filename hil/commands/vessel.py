@@ -24,7 +24,7 @@ from hil.commands.common import (
 )
 
 if TYPE_CHECKING:
-    from hil.runs.vessel_run import VesselConfig
+    from hil.runs.vessel_config import VesselConfig
 
 HELP = "run the stack on the vessel over ROS 2 (wall time), recorded; stops cleanly on SIGINT"
 
@@ -58,14 +58,6 @@ def run(args: argparse.Namespace) -> int:
     0 docked, 1 not docked (time limit, SIGINT/SIGTERM), 2 bad input (config, ROS set-up),
     3 aborted (synthesis failed, or no safe input from the vessel's state).
     """
-    from rich.console import Console
-
-    from hil.adapters.ros import RosBackendError
-    from hil.bag.errors import ReplayError
-    from hil.core.config import ConfigError
-    from hil.runs.vessel_run import VesselConfig, config_text, run_on_ros
-    from hil.scenarios import ScenarioError
-
     def progress(line: str) -> None:
         print(f"hil vessel: {line}", file=sys.stderr, flush=True)
 
@@ -80,6 +72,17 @@ def run(args: argparse.Namespace) -> int:
         print("hil vessel: error: the following arguments are required: --config FILE "
               "(or --print-config for every key with its default)", file=sys.stderr)
         return EXIT_BAD_INPUT
+    if not args.print_config:  # the first line, before the stack's imports (seconds)
+        progress(f"{'preflight' if args.check else 'run'} with {args.config}: loading the stack "
+                 "(numpy, numba, rclpy) ...")
+    from rich.console import Console
+
+    from hil.adapters.ros import RosBackendError
+    from hil.bag.errors import ReplayError
+    from hil.core.config import ConfigError
+    from hil.runs.vessel_config import VesselConfig, config_text
+    from hil.scenarios import ScenarioError
+
     try:
         config = VesselConfig() if args.config is None else VesselConfig.load(args.config)
         config = config.with_ros_args(getattr(args, "ros_args", ()))
@@ -88,6 +91,8 @@ def run(args: argparse.Namespace) -> int:
             return 0
         if args.check:
             return _check(config, 5.0 if args.seconds is None else args.seconds, progress)
+        from hil.runs.vessel_run import run_on_ros  # the stack: seconds of imports
+
         live = None if args.rerun is None else live_rerun(args.rerun)
         summary = run_on_ros(config, args.out, progress=progress, live=live)
     except (ConfigError, ScenarioError, RosBackendError, ReplayError) as err:

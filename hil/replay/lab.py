@@ -44,7 +44,7 @@ from hil.replay.intervals import check_contract
 from hil.replay.regression import Check, Finding, Interval, Status, time_s
 from hil.replay.stack_rerun import Rerun, rerun_stack
 from hil.replay.tracking_checks import check_tracking
-from hil.runs.vessel_run import VesselConfig
+from hil.runs.vessel_config import VesselConfig
 from hil.runtime.assembly import layout_from_scenario
 from hil.runtime.settings import LoopConfig
 from hil.scenarios import Scenario

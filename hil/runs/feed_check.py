@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from hil.adapters.feed_tape import Heard
 from hil.core.arrays import BoolArray, IntArray
 from hil.core.clock import NS_PER_S
 
@@ -34,6 +35,7 @@ __all__ = [
     "judge_pose_feed",
     "judge_position",
     "judge_publishers",
+    "series_of",
 ]
 
 
@@ -85,6 +87,13 @@ class FeedSeries:
     stamp_ns: IntArray
     finite: BoolArray
     frame_ids: tuple[str, ...] = field(default=())
+
+
+def series_of(heard: Heard) -> FeedSeries:
+    """Return what a subscription taped (:class:`hil.adapters.feed_tape.Heard`) as arrays."""
+    return FeedSeries(heard.topic, np.asarray(heard.arrival_ns, dtype=np.int64),
+                      np.asarray(heard.stamp_ns, dtype=np.int64),
+                      np.asarray(heard.finite, dtype=np.bool_), heard.frame_ids)
 
 
 @dataclass(frozen=True)

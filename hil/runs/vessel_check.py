@@ -20,15 +20,15 @@ from hil.adapters.ros_listen import Heard, RosListener
 from hil.controllers.symbolic import NoWinningSetError
 from hil.runs.feed_check import (
     CheckLine,
-    FeedSeries,
     PositionFinding,
     judge_imu_feed,
     judge_pose_feed,
     judge_position,
     judge_publishers,
+    series_of,
 )
 from hil.runs.stack_assembly import synthesizer_for
-from hil.runs.vessel_run import VesselConfig
+from hil.runs.vessel_config import VesselConfig
 from hil.runtime.assembly import LayoutSolver, layout_from_scenario
 from hil.runtime.protocols import SymbolicController
 from hil.scenarios import Scenario, load_scenario
@@ -54,12 +54,6 @@ class CheckReport:
     def ok(self) -> bool:
         """Whether every line passed."""
         return all(line.ok for line in self.lines)
-
-
-def _series(heard: Heard) -> FeedSeries:
-    return FeedSeries(heard.topic, np.asarray(heard.arrival_ns, dtype=np.int64),
-                      np.asarray(heard.stamp_ns, dtype=np.int64),
-                      np.asarray(heard.finite, dtype=np.bool_), heard.frame_ids)
 
 
 def _obstacle_lines(heard: Heard) -> list[CheckLine]:
@@ -133,10 +127,10 @@ def check_vessel(config: VesselConfig, seconds: float,
         assert imu is not None
         lines = [judge_publishers(pose.topic, listener.publishers(pose.topic),
                                   ros.best_effort_sensors, pose.qos_refusals),
-                 *judge_pose_feed(_series(pose), ros.pose_frame_id, ros.use_sim_time),
+                 *judge_pose_feed(series_of(pose), ros.pose_frame_id, ros.use_sim_time),
                  judge_publishers(imu.topic, listener.publishers(imu.topic),
                                   ros.best_effort_sensors, imu.qos_refusals),
-                 *judge_imu_feed(_series(imu), ros.use_sim_time)]
+                 *judge_imu_feed(series_of(imu), ros.use_sim_time)]
         obstacles = listener.heard("obstacles")
         if obstacles is not None:
             lines += [judge_publishers(obstacles.topic, listener.publishers(obstacles.topic),

@@ -1,5 +1,8 @@
 """The stack on the vessel: the ROS 2 backend in wall time (or ROS sim time), recorded.
 
+Its config, :class:`~hil.runs.vessel_config.VesselConfig`, is read by a module of its
+own (``hil vessel --print-config`` needs none of the stack); it is re-exported here.
+
 `hil vessel --config FILE` calls :func:`run_on_ros`. SIGINT and SIGTERM stop the
 loop at its next tick: the thrusters get a zero command and the log is closed,
 so a run interrupted on the tank still leaves a complete bag.
@@ -7,79 +10,38 @@ so a run interrupted on the tank still leaves a complete bag.
 
 from __future__ import annotations
 
+import functools
 import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import ExitStack, contextmanager
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from hil.adapters.feed_health import FeedHealth, Rejection, RejectReason
+from hil.adapters.feed_tape import Heard
 from hil.adapters.interfaces import ObstacleSource, PoseSource
 from hil.adapters.obstacles import StaticObstacleSource
-from hil.adapters.qtm import QtmConfig, QtmPoseSource, qtm_config_from_table
-from hil.adapters.ros import RosConfig, RosWorld
+from hil.adapters.qtm import QtmPoseSource
+from hil.adapters.ros import RosBackendError, RosWorld
 from hil.bag.recorder import Recorder
 from hil.bag.run_info import RunInfo
-from hil.core.config import ConfigError, from_table, load_toml
-from hil.core.config_doc import config_toml
 from hil.runs.feed_watch import FeedWatch
+from hil.runs.live_diagnostics import FeedView
+from hil.runs.live_telemetry import TelemetryLog
 from hil.runs.sim_run import LiveView
 from hil.runs.stack_assembly import build_runtime, scenario_hash, synthesizer_for
 from hil.runs.summary import RunSummary, summarize_run
+from hil.runs.vessel_config import VesselConfig
 from hil.runtime.assembly import layout_from_scenario, warm_up_kernels
 from hil.runtime.loop import Runtime, World
 from hil.runtime.mode import Mode
 from hil.runtime.protocols import RunLog
 from hil.runtime.resynthesis import ResynthesisMode
-from hil.runtime.settings import LoopConfig
 from hil.runtime.signals import stop_on_signals
 from hil.scenarios import load_scenario
-
-
-@dataclass(frozen=True)
-class VesselConfig:
-    """Everything `hil vessel` needs, read from a TOML file.
-
-    Attributes:
-        scenario: Packaged scenario name or path of its TOML file.
-        runs_dir: Where each run's bag directory is created.
-        ros: Topics, QoS, frame transform, domain and clock.
-        loop: Loop rate and fault thresholds.
-        qtm: With a ``[qtm]`` table, the pose comes straight from Qualisys Track Manager
-            (:mod:`hil.adapters.qtm`; IMU and thrusters stay on ROS 2); None: the pose
-            topic of ``[ros.topics]``.
-    """
-
-    scenario: str = "paper"
-    runs_dir: str = "runs"
-    ros: RosConfig = field(default_factory=RosConfig)
-    loop: LoopConfig = field(default_factory=LoopConfig)
-    qtm: QtmConfig | None = None
-
-    def with_ros_args(self, ros_args: tuple[str, ...]) -> VesselConfig:
-        """Return this config with `ros_args` (from ``--ros-args``) after ``[ros] ros_args``."""
-        if not ros_args:
-            return self
-        return replace(self, ros=replace(self.ros, ros_args=(*self.ros.ros_args, *ros_args)))
-
-    @staticmethod
-    def load(path: str | Path) -> VesselConfig:
-        """Read and validate a vessel config file.
-
-        Raises:
-            hil.core.config.ConfigError: Naming the key that is wrong.
-        """
-        table = dict(load_toml(path))
-        qtm = table.pop("qtm", None)
-        config = from_table(VesselConfig, table)
-        if qtm is None:
-            return config
-        if not isinstance(qtm, dict):
-            raise ConfigError(f"qtm: must be a table ([qtm]), got {qtm!r}")
-        return replace(config, qtm=qtm_config_from_table(qtm, config.ros.transform))
-
 
 Progress = Callable[[str], None]
 """Receives one line of what the run is doing (the command prints it)."""
@@ -131,15 +93,6 @@ def _status_every(period_s: float, runtime: Runtime, feeds: FeedWatch,
         done.set()
         thread.join(timeout=1.0)
 
-def config_text(config: VesselConfig) -> str:
-    """Return `config` as commented TOML: every key, its value and its meaning.
-
-    The ``[qtm]`` table, absent unless the pose comes from QTM, is printed commented out
-    with its defaults; its transform is ``[ros.transform]``'s, not a key of its own.
-    """
-    return config_toml(config, optional={"qtm": QtmConfig}, skip=frozenset({"qtm.transform"}))
-
-
 @dataclass(frozen=True)
 class _PoseFeed:
     """Where the run's poses come from, for the wait for the first one."""
@@ -185,6 +138,48 @@ def _wait_for_pose(pose: _PoseFeed, feeds: FeedWatch, progress: Progress) -> str
     return stopped[0] if stopped else None
 
 
+def _telemetry(closing: ExitStack, ros: RosWorld, log: RunLog) -> RunLog:
+    """Return `log` teed to the live topics (``[ros] live_telemetry``), closed by `closing`."""
+    if not ros.config.live_telemetry:
+        return log
+    assert ros.clock is not None
+    clock = ros.clock
+    try:
+        telemetry = TelemetryLog(log, ros.node, clock.now_ns)
+    except ImportError as err:
+        raise RosBackendError(
+            f"the live telemetry needs std_msgs, rcl_interfaces and diagnostic_msgs ({err}): "
+            "install the 'ros' extra, or set [ros] live_telemetry = false") from err
+    closing.callback(telemetry.close)
+    return telemetry
+
+
+def _qtm_health(source: QtmPoseSource) -> FeedHealth:
+    """Return the QTM feed's counters as a feed's health (the runtime knows the newest pose)."""
+    c, cfg = source.counters, source.config
+    lost = (Rejection(RejectReason.NOT_FINITE, c.lost, f"frames with body {cfg.body!r} lost",
+                      "check the cameras see the vessel's rigid body"),) if c.lost else ()
+    return FeedHealth(f"qtm://{cfg.host}:{cfg.port}/{cfg.body}", "poses", c.frames, c.poses, lost)
+
+
+def _pose_feed(closing: ExitStack, config: VesselConfig, ros: RosWorld, log: RunLog,
+               feeds: FeedWatch) -> tuple[PoseSource, _PoseFeed, FeedView]:
+    """Return where the run's poses come from: the ROS topic, or QTM with a ``[qtm]`` table."""
+    pose_health = ros.pose_health
+    heard: Callable[[int], tuple[Heard, Heard]] | None = ros.heard
+    source: PoseSource = ros.pose_source
+    pose = _ros_pose(ros, config.ros.topics.pose, feeds)
+    if config.qtm is not None:
+        assert ros.clock is not None
+        qtm = closing.enter_context(QtmPoseSource(
+            config.qtm, ros.clock, on_event=lambda e: log.event(e.t_ns, e.level, e.code, e.text),
+        ))  # fmt: skip
+        source, pose, heard = qtm, _qtm_pose(qtm), None
+        pose_health = functools.partial(_qtm_health, qtm)
+    return source, pose, FeedView(pose_health, ros.imu_health, heard, config.ros.pose_frame_id,
+                                  config.ros.use_sim_time)
+
+
 def run_on_ros(config: VesselConfig, out_dir: Path | None = None,
                progress: Progress = _quiet, live: LiveView | None = None) -> RunSummary:
     """Run the stack against the vessel over ROS 2 until docked, stopped or timed out.
@@ -214,20 +209,15 @@ def run_on_ros(config: VesselConfig, out_dir: Path | None = None,
                                      backend="ros")) as recorder, ExitStack() as closing:
         assert ros.clock is not None
         assert ros.thruster_sink is not None
-        feeds = FeedWatch(ros, recorder, progress)
+        log = _telemetry(closing, ros, recorder if live is None else live(scenario, recorder))
+        feeds = FeedWatch(ros, log, progress)
         obstacles: ObstacleSource = ros.obstacle_source or StaticObstacleSource(layout)
-        pose_source: PoseSource = ros.pose_source
-        pose = _ros_pose(ros, config.ros.topics.pose, feeds)
-        if config.qtm is not None:
-            qtm = closing.enter_context(QtmPoseSource(
-                config.qtm, ros.clock,
-                on_event=lambda e: recorder.event(e.t_ns, e.level, e.code, e.text),
-            ))  # fmt: skip
-            pose_source, pose = qtm, _qtm_pose(qtm)
+        pose_source, pose, feed_view = _pose_feed(closing, config, ros, log, feeds)
         world = World(ros.clock, pose_source, ros.imu_source, obstacles, ros.thruster_sink)
-        log: RunLog = recorder if live is None else live(scenario, recorder)
         runtime = build_runtime(scenario, world, log, config.loop, synthesizer,
                                 ResynthesisMode.THREAD)
+        if isinstance(log, TelemetryLog):
+            log.watch(runtime, feed_view, config.ros.node_name)
         # Compile and synthesize before the loop starts, so its first ticks keep time.
         progress("synthesizing the controller...")
         # A signal while synthesizing (seconds) stops the run at its first tick, with

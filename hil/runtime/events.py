@@ -81,6 +81,9 @@ class EventCode(enum.Enum):
     their limits, :mod:`hil.controllers.consistency`): the estimation bound the
     guarantee assumes is no longer credible, so the run is aborted with a safe stop
     (braking to rest on the estimate, the best the loop has)."""
+    TELEMETRY_FAILED = "telemetry_failed"
+    """A live telemetry message of ``hil vessel`` could not be published (WARN, once per
+    topic, :mod:`hil.adapters.ros_telemetry`): the run goes on, its log keeps everything."""
     ABORTED = "aborted"
     """The run cannot go on (no controller for the layout, a state no safe input leaves
     from): thrusters to zero and the run ends at once, the text saying why."""

@@ -87,9 +87,9 @@ def test_monitor_describes_what_arrived(accepted: int, head: str) -> None:
     for _ in range(3):
         monitor.received()
         monitor.refused(refusal)
-    for _ in range(accepted):
+    for stamp_ns in (20, 10)[:accepted]:
         monitor.received()
-        monitor.accepted()
+        monitor.accepted(stamp_ns)
     monitor.refused(qos_refusal("RELIABILITY", best_effort=False), count=2)
     health = monitor.snapshot()
     assert health.rejected == 3  # QoS refusals are publishers, not messages
@@ -97,3 +97,5 @@ def test_monitor_describes_what_arrived(accepted: int, head: str) -> None:
     assert [r.reason for r in health.rejections] == [RejectReason.FRAME_ID,
                                                      RejectReason.QOS_INCOMPATIBLE]
     assert health.rejections[1].count == 2
+    # The newest stamp accepted, whatever the order they came in.
+    assert health.last_ns == (None, 20, 20)[accepted]

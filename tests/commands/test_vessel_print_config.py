@@ -9,7 +9,7 @@ import pytest
 
 from hil.cli import main
 from hil.core.config import from_table
-from hil.runs.vessel_run import VesselConfig
+from hil.runs.vessel_config import VesselConfig
 
 
 def _printed(capsys: pytest.CaptureFixture[str], *args: str) -> str:

@@ -4,7 +4,7 @@ import pytest
 
 from hil.adapters.ros import RosConfig
 from hil.core.config import ConfigError, check_keys, from_table, load_toml, number, numbers, table
-from hil.runs.vessel_run import VesselConfig
+from hil.runs.vessel_config import VesselConfig
 
 
 def _write(tmp_path: Path, text: str) -> Path:

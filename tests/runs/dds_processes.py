@@ -34,7 +34,8 @@ def own_domain(first: int, span: int, offset: int = 0) -> int:
     """Return a ROS domain in [first, first + span) for this test process and `offset`.
 
     Each module takes its own range (test_ros_e2e 150-229, test_independent_vessel
-    60-139, the adapters' tests 100-199, the feed tests 20-59, test_qtm_vessel 1-19), so
+    60-139, the adapters' tests 100-199, the feed tests 20-59, test_qtm_vessel 1-19,
+    test_live_telemetry 140-149), so
     parallel tests stay apart. FastDDS refuses domains above 232.
     """
     return first + (os.getpid() + 7 * offset) % span

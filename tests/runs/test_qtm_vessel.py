@@ -33,7 +33,7 @@ from rerun.chunk import RrdReader
 from hil.bag.reader import BagReader
 from hil.core.config import ConfigError
 from hil.core.records import Event
-from hil.runs.vessel_run import VesselConfig
+from hil.runs.vessel_config import VesselConfig
 from tests.adapters.qtm_server import QtmTestServer
 from tests.runs.dds_processes import dds_env, own_domain, stop
 from tests.views.rrd_store import rows

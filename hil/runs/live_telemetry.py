@@ -1,0 +1,100 @@
+"""``hil vessel``'s live telemetry: the run's log, teed to ROS 2 topics while it runs.
+
+:class:`TelemetryLog` is a :class:`~hil.runtime.protocols.RunLog` that forwards every
+record to the run's log first (the recorder: the live view never costs recorded data)
+and queues each decision and event for :class:`hil.adapters.ros_telemetry.RosTelemetry`,
+which publishes them (and ``/diagnostics``, :mod:`hil.runs.live_diagnostics`) from its
+own thread. A failing publish is recorded as a ``telemetry_failed`` event in the log.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from hil.adapters.ros_telemetry import RosTelemetry
+from hil.core.arrays import FloatArray
+from hil.core.records import ControllerReady, Decision, Event, EventLevel
+from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
+from hil.runs.live_diagnostics import FeedView, VesselDiagnostics
+from hil.runtime.events import EventCode
+from hil.runtime.loop import Runtime
+from hil.runtime.protocols import RunLog
+
+__all__ = ["TelemetryLog"]
+
+
+class TelemetryLog:
+    """A RunLog that records into `inner` and publishes decisions and events live.
+
+    Args:
+        inner: The run's log (the recorder, or a live Rerun view around it).
+        node: The ROS world's open node; the publishers are created on it.
+        now_ns: The node clock (ns).
+
+    Raises:
+        ImportError: The telemetry's message packages are missing.
+    """
+
+    def __init__(self, inner: RunLog, node: object, now_ns: Callable[[], int]) -> None:
+        self.inner = inner
+        self._now_ns = now_ns
+        self.telemetry = RosTelemetry(node, now_ns, self._failed)
+        self.last_decision: Decision | None = None
+        """The newest decision taken (for the diagnostics)."""
+
+    def _failed(self, text: str) -> None:
+        # Into the recorder only: publishing this event would fail the same way.
+        self.inner.event(max(0, self._now_ns()), EventLevel.WARN,
+                         EventCode.TELEMETRY_FAILED.value, text)
+
+    def watch(self, runtime: Runtime, feeds: FeedView, node_name: str) -> None:
+        """Start publishing, with ``/diagnostics`` on `runtime` and `feeds`."""
+        self.telemetry.start(VesselDiagnostics(runtime, feeds, lambda: self.last_decision,
+                                               node_name))
+
+    def close(self) -> None:
+        """Publish what is queued and stop publishing."""
+        self.telemetry.close()
+
+    def pose(self, sample: PoseSample) -> None:
+        """Record a pose sample as received."""
+        self.inner.pose(sample)
+
+    def imu(self, sample: ImuSample) -> None:
+        """Record an IMU sample as received."""
+        self.inner.imu(sample)
+
+    def estimate(self, t_ns: int, eta: FloatArray, nu: FloatArray) -> None:
+        """Record the observer's estimate (eta (3,), nu (3,))."""
+        self.inner.estimate(t_ns, eta, nu)
+
+    def velocity_reference(self, t_ns: int, nu_ref: FloatArray) -> None:
+        """Record the velocity reference sent to the low level, (3,)."""
+        self.inner.velocity_reference(t_ns, nu_ref)
+
+    def force(self, t_ns: int, tau: FloatArray) -> None:
+        """Record the generalized force demanded by the velocity controller, (3,)."""
+        self.inner.force(t_ns, tau)
+
+    def thrusters(self, command: ThrusterCommand) -> None:
+        """Record a thruster command as sent."""
+        self.inner.thrusters(command)
+
+    def decision(self, record: Decision) -> None:
+        """Record one decision, then queue it for the live topic."""
+        self.inner.decision(record)
+        self.last_decision = record
+        self.telemetry.decision(record)
+
+    def obstacles(self, layout: ObstacleLayout) -> None:
+        """Record an obstacle layout when it changes."""
+        self.inner.obstacles(layout)
+
+    def event(self, t_ns: int, level: EventLevel, code: str, text: str) -> None:
+        """Record an event, then queue it for the live topic."""
+        self.inner.event(t_ns, level, code, text)
+        self.telemetry.event(Event(t_ns, level, code, text))
+
+    def controller_ready(self, record: ControllerReady) -> None:
+        """Record a controller taken from the re-synthesis."""
+        self.inner.controller_ready(record)
