@@ -20,6 +20,7 @@ from hil.adapters.interfaces import ObstacleSource, PoseSource
 from hil.adapters.obstacles import StaticObstacleSource
 from hil.adapters.qtm import QtmConfig, QtmPoseSource, qtm_config_from_table
 from hil.adapters.ros import RosConfig, RosWorld
+from hil.bag.messages import DEFAULT_LAB_FRAME, LabFrame
 from hil.bag.recorder import Recorder
 from hil.bag.run_info import RunInfo
 from hil.core.config import ConfigError, from_table, load_toml
@@ -211,7 +212,10 @@ def run_on_ros(config: VesselConfig, out_dir: Path | None = None,
     with RosWorld(config.ros, obstacles=layout, min_move_m=scenario.tracking.position_tolerance_m,
                   stale_after_s=max(1.0, config.loop.pose_timeout_s)) as ros, Recorder(
             out_dir, RunInfo.current(config.scenario, scenario_hash(scenario), None,
-                                     backend="ros")) as recorder, ExitStack() as closing:
+                                     backend="ros"),
+            lab=LabFrame(config.ros.transform,
+                         config.ros.pose_frame_id or DEFAULT_LAB_FRAME.frame_id),
+    ) as recorder, ExitStack() as closing:
         assert ros.clock is not None
         assert ros.thruster_sink is not None
         feeds = FeedWatch(ros, recorder, progress)
@@ -222,6 +226,7 @@ def run_on_ros(config: VesselConfig, out_dir: Path | None = None,
             qtm = closing.enter_context(QtmPoseSource(
                 config.qtm, ros.clock,
                 on_event=lambda e: recorder.event(e.t_ns, e.level, e.code, e.text),
+                on_sample=recorder.record,
             ))  # fmt: skip
             pose_source, pose = qtm, _qtm_pose(qtm)
         world = World(ros.clock, pose_source, ros.imu_source, obstacles, ros.thruster_sink)
