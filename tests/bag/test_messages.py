@@ -34,6 +34,9 @@ def _fields(record: Any) -> dict[str, Any]:
     return {name: getattr(record, name) for name in record.__slots__}
 
 
+IDENTITY = DEFAULT_LAB_FRAME.transform
+
+
 @pytest.mark.parametrize("record", one_of_each(1_234_567_891, 3), ids=lambda r: type(r).__name__)
 def test_rosbags_decodes_what_hil_encodes(record: Record) -> None:
     store = ts.typestore()
@@ -44,19 +47,15 @@ def test_rosbags_decodes_what_hil_encodes(record: Record) -> None:
         msg = store.deserialize_cdr(payload, msgtype)
         if topic != topics.THRUSTERS and isinstance(record, ThrusterCommand):
             continue  # the lab's per-thruster topics are checked below
-        if topic == topics.POSE:  # the lab's: the pose in the lab's frame (identity here)
-            lab = record if record.frame is Frame.LAB_NED else DEFAULT_LAB_FRAME.transform.to_lab(
-                record
-            )
+        if topic == topics.POSE and isinstance(record, PoseSample):  # lab frame (identity)
+            lab = record if record.frame is Frame.LAB_NED else IDENTITY.to_lab(record)
             assert_same(to_record(msgtype, msg), lab)
         elif msgtype in (topics.TWIST_TYPE, topics.WRENCH_TYPE):  # the lab's unstamped command
             assert to_record(msgtype, msg) is None
             stamped = dict(pairs)[topics.STREAM_TOPICS_BY_STREAM[topic]]
             assert payload[4:] == stamped[-48:]  # the same six doubles
-        elif topic == topics.HIL_POSE:  # the arena's
-            arena = record if record.frame is Frame.ARENA else DEFAULT_LAB_FRAME.transform.to_arena(
-                record
-            )
+        elif topic == topics.HIL_POSE and isinstance(record, PoseSample):  # the arena's
+            arena = record if record.frame is Frame.ARENA else IDENTITY.to_arena(record)
             assert_same(to_record(msgtype, msg), arena)
         else:
             assert_same(to_record(msgtype, msg), record)

@@ -41,8 +41,9 @@ def expected_back(records: Sequence[R]) -> list[R]:
 
     The recorder's lab frame is the identity here.
     """
-    arena = [
-        ArenaTransform().to_arena(r) if isinstance(r, PoseSample) else r for r in records
+    arena: list[R] = [
+        ArenaTransform().to_arena(r) if isinstance(r, PoseSample) else r  # type: ignore[misc]
+        for r in records
     ]
     return sorted(arena, key=lambda r: r.t_ns)
 
