@@ -300,6 +300,5 @@ def test_recorder_is_the_runtimes_run_log(tmp_path: Path) -> None:
     log.obstacles(ObstacleLayout(1, (Rect(0.0, 1.0, 0.0, 1.0),)))
     log.close()
     with BagReader(tmp_path / "run") as reader:
-        assert {t for t, _, _ in reader.records()} == {
-            topics.POSE, topics.HIL_POSE, topics.IMU, topics.OBSTACLES
-        }
+        own = {t for t, _, _ in reader.records()}  # the lab's pose copy left out
+        assert own == {topics.HIL_POSE, topics.IMU, topics.OBSTACLES}
