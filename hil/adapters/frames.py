@@ -1,4 +1,6 @@
-"""The transform from the lab's motion-capture frames to the arena frame.
+"""The lab-to-arena transform (re-exported) and the ROS adapter's quaternion helpers.
+
+:class:`ArenaTransform` lives in :mod:`hil.core.arena_frame` (the recorder uses it too).
 
 The lab's world is NED (x north, y east, z down) and the mocap rigid body is
 FRD; the paper's arena is a planar frame with z down as well, so both share the
@@ -10,10 +12,12 @@ mocap rigid body's frame, rotated by `body_yaw_rad`.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
-from hil.core.geometry import quaternion_yaw, wrap_angle, yaw_quaternion
-from hil.core.samples import Frame, PoseSample, SampleError
+from hil.core.arena_frame import ArenaTransform
+from hil.core.geometry import quaternion_yaw, yaw_quaternion
+from hil.core.samples import SampleError
+
+__all__ = ["ArenaTransform", "quaternion_from_yaw", "yaw_from_quaternion"]
 
 
 def yaw_from_quaternion(x: float, y: float, z: float, w: float) -> float:
@@ -31,73 +35,3 @@ def yaw_from_quaternion(x: float, y: float, z: float, w: float) -> float:
 def quaternion_from_yaw(yaw_rad: float) -> tuple[float, float, float, float]:
     """Return the unit quaternion (x, y, z, w) of a pure rotation by `yaw_rad` about z."""
     return yaw_quaternion(yaw_rad)
-
-
-@dataclass(frozen=True, slots=True)
-class ArenaTransform:
-    """Where the arena lies in the lab's NED world, and the vessel in the mocap body.
-
-    Attributes:
-        origin_north_m: Arena origin's north coordinate in the lab frame (m).
-        origin_east_m: Arena origin's east coordinate in the lab frame (m).
-        yaw_rad: Rotation of the arena's x axis from north, about down (rad).
-        body_offset_x_m: Vessel body origin in the mocap body frame, forward (m).
-        body_offset_y_m: Vessel body origin in the mocap body frame, starboard (m).
-        body_yaw_rad: Heading of the vessel body relative to the mocap body (rad).
-    """
-
-    origin_north_m: float = 0.0
-    origin_east_m: float = 0.0
-    yaw_rad: float = 0.0
-    body_offset_x_m: float = 0.0
-    body_offset_y_m: float = 0.0
-    body_yaw_rad: float = 0.0
-
-    def __post_init__(self) -> None:
-        for name in self.__dataclass_fields__:
-            if not math.isfinite(getattr(self, name)):
-                raise SampleError(f"arena transform field {name!r} is not finite")
-
-    def point_to_arena(self, north_m: float, east_m: float) -> tuple[float, float]:
-        """Map a point of the lab's NED world to arena (x, y) (m); no body offset."""
-        dn, de = north_m - self.origin_north_m, east_m - self.origin_east_m
-        ca, sa = math.cos(self.yaw_rad), math.sin(self.yaw_rad)
-        return ca * dn + sa * de, -sa * dn + ca * de
-
-    def point_to_lab(self, x_m: float, y_m: float) -> tuple[float, float]:
-        """Map an arena point (x, y) to the lab's (north, east) (m); inverse of the above."""
-        ca, sa = math.cos(self.yaw_rad), math.sin(self.yaw_rad)
-        return self.origin_north_m + ca * x_m - sa * y_m, self.origin_east_m + sa * x_m + ca * y_m
-
-    def to_arena(self, pose: PoseSample) -> PoseSample:
-        """Map a mocap pose in the lab's NED frame to the vessel's pose in the arena."""
-        if pose.frame is Frame.ARENA:
-            return pose
-        if pose.frame is not Frame.LAB_NED:
-            raise SampleError(f"cannot map a pose in frame {pose.frame.value!r} to the arena")
-        c, s = math.cos(pose.yaw_rad), math.sin(pose.yaw_rad)
-        north = pose.x_m + c * self.body_offset_x_m - s * self.body_offset_y_m
-        east = pose.y_m + s * self.body_offset_x_m + c * self.body_offset_y_m
-        x_m, y_m = self.point_to_arena(north, east)
-        return PoseSample(
-            t_ns=pose.t_ns,
-            x_m=x_m,
-            y_m=y_m,
-            yaw_rad=wrap_angle(pose.yaw_rad + self.body_yaw_rad - self.yaw_rad),
-            frame=Frame.ARENA,
-        )
-
-    def to_lab(self, pose: PoseSample) -> PoseSample:
-        """Map a vessel pose in the arena to the mocap body's pose in the lab (inverse)."""
-        if pose.frame is not Frame.ARENA:
-            raise SampleError(f"expected an arena pose, got frame {pose.frame.value!r}")
-        north, east = self.point_to_lab(pose.x_m, pose.y_m)
-        yaw = wrap_angle(pose.yaw_rad + self.yaw_rad - self.body_yaw_rad)
-        c, s = math.cos(yaw), math.sin(yaw)
-        return PoseSample(
-            t_ns=pose.t_ns,
-            x_m=north - (c * self.body_offset_x_m - s * self.body_offset_y_m),
-            y_m=east - (s * self.body_offset_x_m + c * self.body_offset_y_m),
-            yaw_rad=yaw,
-            frame=Frame.LAB_NED,
-        )

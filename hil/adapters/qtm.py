@@ -39,6 +39,7 @@ from hil.adapters.qtm_feed import (
     yaw_from_rotation_matrix,
 )
 from hil.core.config import check_keys, from_table
+from hil.core.qtm_sample import QtmSample
 from hil.core.records import Event, EventLevel
 from hil.core.samples import Frame, PoseSample
 
@@ -141,13 +142,19 @@ class QtmPoseSource:
         on_event: Receives the feed's events at each :meth:`poll`, in the polling thread
             (e.g. ``lambda e: log.event(e.t_ns, e.level, e.code, e.text)``); None keeps
             them for :meth:`drain_events`.
+        on_sample: Receives every 6D frame of the body as received (a
+            :class:`~hil.core.qtm_sample.QtmSample`, lost bodies included) at each
+            :meth:`poll`, before the poses, in the polling thread (e.g. the recorder's
+            ``record``); None drops them.
     """
 
     def __init__(self, config: QtmConfig, clock: Clock,
-                 on_event: Callable[[Event], None] | None = None) -> None:
+                 on_event: Callable[[Event], None] | None = None,
+                 on_sample: Callable[[QtmSample], None] | None = None) -> None:
         self.config = config
         self._clock = clock
         self._on_event = on_event
+        self._on_sample = on_sample
         self._feed = QtmFeed(config.body, config.transform, config.clock, config.stall_s)
         self._lock = threading.Lock()
         self._poses: list[PoseSample] = []
@@ -211,6 +218,10 @@ class QtmPoseSource:
         with self._lock:
             self._feed.watch(now_ns)
             out, self._poses = self._poses, []
+            samples, self._feed.samples = self._feed.samples, []
+        if self._on_sample is not None:
+            for sample in samples:
+                self._on_sample(sample)
         if self._on_event is not None:
             for event in self.drain_events():
                 self._on_event(event)
@@ -397,7 +408,7 @@ class QtmPoseSource:
                 position, rotation = bodies[index]
                 pose = feed.frame(arrival_ns, packet.timestamp, packet.framenumber,
                                   (position.x, position.y, position.z), rotation.matrix,
-                                  info.drop_rate)
+                                  info.drop_rate, info.out_of_sync_rate, index)
                 if pose is not None:
                     self._poses.append(pose)
             if pose is not None:

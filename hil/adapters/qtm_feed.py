@@ -24,6 +24,7 @@ from dataclasses import dataclass, replace
 from hil.adapters.frames import ArenaTransform
 from hil.core.clock import NS_PER_S
 from hil.core.geometry import wrap_angle
+from hil.core.qtm_sample import QtmSample
 from hil.core.records import Event, EventLevel
 from hil.core.samples import Frame, PoseSample
 
@@ -246,6 +247,8 @@ class QtmFeed:
         self._stall_ns = round(stall_s * NS_PER_S)
         self.counts = QtmCounters()
         self.events: list[Event] = []
+        self.samples: list[QtmSample] = []
+        """Every frame taken, as received (for the run log); the owner empties it."""
         self._last_frame: int | None = None
         self._last_arrival_ns: int | None = None
         self._silent_reported = False
@@ -270,7 +273,8 @@ class QtmFeed:
 
     def frame(self, arrival_ns: int, timestamp_us: int, frame_number: int,
               position_mm: Sequence[float], matrix: Sequence[float],
-              drop_rate: int = 0) -> PoseSample | None:
+              drop_rate: int = 0, out_of_sync_rate: int = 0,
+              body_index: int = -1) -> PoseSample | None:
         """Take one received frame of the body; return its arena pose, or None if lost.
 
         Args:
@@ -280,6 +284,10 @@ class QtmFeed:
             position_mm: The body's (x, y, z) (mm, QTM's axes).
             matrix: Its rotation matrix (9 floats, QTM's column order).
             drop_rate: The 6D component's drop rate field, kept in the counters.
+            out_of_sync_rate: The 6D component's out-of-sync rate field.
+            body_index: The body's index among QTM's 6D bodies (-1: not told).
+
+        Every frame is also kept in :attr:`samples` as received.
         """
         self._count(frames=1)
         self._check_sequence(arrival_ns, frame_number)
@@ -291,6 +299,8 @@ class QtmFeed:
         lab = lab_pose_from_6d(t_ns, position_mm, matrix)
         if self.counts.last_drop_rate != drop_rate:
             self.counts = replace(self.counts, last_drop_rate=drop_rate)
+        self._keep(t_ns, timestamp_us, frame_number, position_mm, matrix,
+                   (drop_rate, out_of_sync_rate, body_index), lost=lab is None)
         if lab is None:
             if self._lost_since is None:
                 self._lost_since = frame_number
@@ -306,6 +316,16 @@ class QtmFeed:
             self._lost_since = None
         self._count(poses=1)
         return self.transform.to_arena(lab)
+
+    def _keep(self, t_ns: int, timestamp_us: int, frame_number: int,
+              position_mm: Sequence[float], matrix: Sequence[float],
+              fields: tuple[int, int, int], lost: bool) -> None:
+        """Keep the frame as received; `fields`: drop rate, out-of-sync rate, body index."""
+        x, y, z = (float(v) for v in position_mm)
+        self.samples.append(QtmSample(
+            max(0, t_ns), timestamp_us, max(0, frame_number), fields[2], self.body, (x, y, z),
+            tuple(float(v) for v in matrix), math.nan, fields[0], fields[1],
+            self.counts.drops, self.counts.lost + int(lost)))  # fmt: skip
 
     def _check_sequence(self, arrival_ns: int, frame_number: int) -> None:
         last, self._last_frame = self._last_frame, frame_number

@@ -8,9 +8,11 @@ recorder writes at each flush, at about a microsecond per message instead of the
 few microseconds of :func:`hil.bag.messages.encode` (which stays the reference:
 tests check both give payloads that decode to the same samples).
 
-Layouts follow :mod:`hil.bag.messages`: header stamp = sample time, the yaw as
-a quaternion about z, the IMU without orientation, the lab's per-thruster Wrench
-topics plus the lossless ``/hil/thrusters``.
+Layouts and topics follow :mod:`hil.bag.messages`: header stamp = sample time, the
+yaw as a quaternion about z, the IMU without orientation, poses in the lab's frame and
+on ``/hil/pose`` in the arena, the commands unstamped on the lab's topics and stamped
+on ``/hil/...``, the lab's per-thruster Wrench topics plus the lossless
+``/hil/thrusters``.
 """
 
 from __future__ import annotations
@@ -26,11 +28,13 @@ from numpy.typing import NDArray
 
 from hil.bag import topics
 from hil.bag.errors import RecordValueError
+from hil.bag.messages import DEFAULT_LAB_FRAME, LabFrame
+from hil.core.arrays import FloatArray
 from hil.core.azimuth import azimuth_vectors
 from hil.core.clock import NS_PER_S
 from hil.core.geometry import yaw_quaternions
 from hil.core.records import ForceCommand, StateEstimate
-from hil.core.samples import ImuSample, PoseSample, ThrusterCommand, VelocityReference
+from hil.core.samples import Frame, ImuSample, PoseSample, ThrusterCommand, VelocityReference
 
 _ENCAPSULATION = b"\x00\x01\x00\x00"
 _MAX_T_NS = 2**31 * NS_PER_S
@@ -122,17 +126,30 @@ def _quaternion_z(values: NDArray[np.float64], yaw: NDArray[np.float64], at: int
     values[:, at : at + 4] = yaw_quaternions(yaw)
 
 
-def encode_poses(records: Sequence[PoseSample]) -> list[Block]:
-    """Encode poses as PoseWithCovarianceStamped, one block per frame."""
+def _pose_block(topic: str, frame_id: str, t: NDArray[np.int64], poses: FloatArray) -> Block:
+    values = np.zeros((len(t), 43))
+    values[:, 0:2] = poses[:, 0:2]
+    _quaternion_z(values, poses[:, 2], 3)
+    return Block(topic, t, _fill(_stamped(frame_id, 43), t, values))
+
+
+def encode_poses(records: Sequence[PoseSample], lab: LabFrame = DEFAULT_LAB_FRAME) -> list[Block]:
+    """Encode poses as PoseWithCovarianceStamped on the lab's topic and on ``/hil/pose``.
+
+    The lab's frame on the lab's topic, the arena on ``/hil/pose``: two blocks per
+    frame the records come in.
+    """
     blocks = []
     for frame in {r.frame for r in records}:
         group = [r for r in records if r.frame is frame]
         t = _times(group)
         cols = _columns(group, ("x_m", "y_m", "yaw_rad"))
-        values = np.zeros((len(group), 43))
-        values[:, 0:2] = cols[:, 0:2]
-        _quaternion_z(values, cols[:, 2], 3)
-        blocks.append(Block(topics.POSE, t, _fill(_stamped(frame.value, 43), t, values)))
+        if frame is Frame.LAB_NED:
+            in_lab, in_arena = cols, lab.transform.poses_to_arena(cols)
+        else:
+            in_lab, in_arena = lab.transform.poses_to_lab(cols), cols
+        blocks.append(_pose_block(topics.POSE, lab.frame_id, t, in_lab))
+        blocks.append(_pose_block(topics.HIL_POSE, topics.ARENA_FRAME, t, in_arena))
     return blocks
 
 
@@ -160,26 +177,44 @@ def encode_estimates(records: Sequence[StateEstimate]) -> list[Block]:
     values[:, 43:45] = cols[:, 3:5]  # twist.linear.x, .y
     values[:, 48] = cols[:, 5]  # twist.angular.z
     layout = _stamped(topics.ARENA_FRAME, 85, topics.BODY_FRAME)
-    return [Block(topics.ODOM, t, _fill(layout, t, values))]
+    return [Block(topics.HIL_ODOM, t, _fill(layout, t, values))]
 
 
-def _body_six(topic: str, records: Sequence[Any], names: tuple[str, str, str]) -> list[Block]:
+def _body_six(
+    topics_: tuple[str, str], records: Sequence[Any], names: tuple[str, str, str]
+) -> list[Block]:
+    """Unstamped on the lab's topic (Twist, Wrench), stamped on hil's (first, second)."""
     t = _times(records)
     cols = _columns(records, names)
     values = np.zeros((len(records), 6))
     values[:, 0:2] = cols[:, 0:2]
     values[:, 5] = cols[:, 2]
-    return [Block(topic, t, _fill(_stamped(topics.BODY_FRAME, 6), t, values))]
+    return [
+        Block(topics_[0], t, _fill(_WRENCH, t, values)),
+        Block(topics_[1], t, _fill(_stamped(topics.BODY_FRAME, 6), t, values)),
+    ]
 
 
 def encode_velocity_references(records: Sequence[VelocityReference]) -> list[Block]:
-    """Encode nu_ref as TwistStamped (linear.x = u, linear.y = v, angular.z = r)."""
-    return _body_six(topics.VELOCITY_COMMAND, records, ("surge_mps", "sway_mps", "yaw_rate_radps"))
+    """Encode nu_ref as the lab's Twist and TwistStamped on /hil.
+
+    linear.x = u, linear.y = v, angular.z = r.
+    """
+    return _body_six(
+        (topics.VELOCITY_COMMAND, topics.HIL_VELOCITY_COMMAND),
+        records,
+        ("surge_mps", "sway_mps", "yaw_rate_radps"),
+    )
 
 
 def encode_forces(records: Sequence[ForceCommand]) -> list[Block]:
-    """Encode tau as WrenchStamped (force.x = X, force.y = Y, torque.z = N)."""
-    return _body_six(topics.FORCE_COMMAND, records, ("surge_n", "sway_n", "yaw_nm"))
+    """Encode tau as the lab's Wrench and WrenchStamped on /hil.
+
+    force.x = X, force.y = Y, torque.z = N.
+    """
+    return _body_six(
+        (topics.FORCE_COMMAND, topics.HIL_FORCE_COMMAND), records, ("surge_n", "sway_n", "yaw_nm")
+    )
 
 
 def encode_thruster_commands(records: Sequence[ThrusterCommand]) -> list[Block]:

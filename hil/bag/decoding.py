@@ -18,9 +18,11 @@ import numpy as np
 from hil.bag import topics
 from hil.bag import typestore as ts
 from hil.bag.errors import RecordValueError
-from hil.bag.messages import Record
+from hil.bag.messages import LabFrame, Record
+from hil.core.arena_frame import ArenaTransform
 from hil.core.clock import NS_PER_S
 from hil.core.geometry import quaternion_yaw
+from hil.core.qtm_sample import QtmSample
 from hil.core.records import (
     ControllerReady,
     ControllerSource,
@@ -191,6 +193,50 @@ def _controller_ready(msg: Any) -> ControllerReady:
     )
 
 
+def _qtm(msg: Any) -> QtmSample:
+    return QtmSample(
+        _t_ns(msg.header),
+        int(msg.qtm_timestamp_us),
+        int(msg.frame_number),
+        int(msg.body_index),
+        str(msg.body),
+        (float(msg.position_mm[0]), float(msg.position_mm[1]), float(msg.position_mm[2])),
+        tuple(float(v) for v in msg.rotation),
+        float(msg.residual_mm),
+        int(msg.drop_rate),
+        int(msg.out_of_sync_rate),
+        int(msg.drops),
+        int(msg.lost),
+    )
+
+
+def _planar(transform: Any) -> tuple[float, float, float]:
+    """Return (x m, y m, yaw rad) of a geometry_msgs/Transform."""
+    return (float(transform.translation.x), float(transform.translation.y),
+            _yaw(transform.rotation))  # fmt: skip
+
+
+def lab_frame_from_tf(msg: Any) -> LabFrame | None:
+    """Return the lab frame a tf2_msgs/TFMessage of hil's recorder holds, else None.
+
+    It needs ``<lab frame> -> arena``; ``mocap_body -> body`` (the body offset) is taken
+    when present, else zero (the inverse of :func:`hil.bag.messages.tf_static_msg`).
+    """
+    arena = body = None
+    for stamped in msg.transforms:
+        if stamped.child_frame_id == topics.ARENA_FRAME:
+            arena = (str(stamped.header.frame_id), _planar(stamped.transform))
+        elif (stamped.child_frame_id, stamped.header.frame_id) == (
+            topics.BODY_FRAME, topics.MOCAP_BODY_FRAME
+        ):
+            body = _planar(stamped.transform)
+    if arena is None:
+        return None
+    frame_id, (north, east, yaw) = arena
+    bx, by, byaw = body if body is not None else (0.0, 0.0, 0.0)
+    return LabFrame(ArenaTransform(north, east, yaw, bx, by, byaw), frame_id or topics.LAB_FRAME)
+
+
 _DECODERS: dict[str, Callable[[Any], Record]] = {
     topics.POSE_TYPE: _pose,
     topics.IMU_TYPE: _imu,
@@ -202,6 +248,7 @@ _DECODERS: dict[str, Callable[[Any], Record]] = {
     ts.OBSTACLE_LAYOUT: _layout,
     ts.EVENT: _event,
     ts.CONTROLLER_READY: _controller_ready,
+    ts.QTM_6D: _qtm,
 }
 
 SAMPLE_TYPES: frozenset[str] = frozenset(_DECODERS)

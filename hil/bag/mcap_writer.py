@@ -35,6 +35,8 @@ from mcap.records import (
     DataEnd,
     Footer,
     Header,
+    Metadata,
+    MetadataIndex,
     Schema,
     Statistics,
     SummaryOffset,
@@ -102,6 +104,7 @@ class McapChunkWriter:
         self._schemas: dict[int, Schema] = {}
         self._channels: dict[int, Channel] = {}
         self._chunk_indexes: list[ChunkIndex] = []
+        self._metadata: list[Metadata] = []
         self._counts: dict[int, int] = {}
         self._message_count = 0
         self._start = 2**64 - 1
@@ -273,9 +276,28 @@ class McapChunkWriter:
         self._close_chunk()
         self._stream.flush()
 
+    def add_metadata(self, name: str, metadata: dict[str, str]) -> None:
+        """Keep a Metadata record (name, string map) for :meth:`finish`.
+
+        It is written after the last chunk and indexed in the summary, as rosbag2
+        writes its ``"rosbag2"`` record.
+        """
+        self._metadata.append(Metadata(name=name, metadata=dict(metadata)))
+
+    def _write_metadata(self) -> list[MetadataIndex]:
+        indexes = []
+        for record in self._metadata:
+            builder = RecordBuilder()
+            record.write(builder)
+            data = _end(builder)
+            indexes.append(MetadataIndex(offset=self._pos, length=len(data), name=record.name))
+            self._write(data)
+        return indexes
+
     def finish(self) -> None:
-        """Close the last chunk and write data end, summary, footer and end magic."""
+        """Close the last chunk and write metadata, data end, summary, footer and end magic."""
         self._close_chunk()
+        metadata_indexes = self._write_metadata()
         builder = RecordBuilder()
         DataEnd(data_section_crc=0).write(builder)
         self._write(_end(builder))
@@ -283,7 +305,10 @@ class McapChunkWriter:
         summary = RecordBuilder()
         offsets: list[SummaryOffset] = []
 
-        def group(opcode: int, records: list[Schema] | list[Channel] | list[ChunkIndex]) -> None:
+        def group(
+            opcode: int,
+            records: list[Schema] | list[Channel] | list[ChunkIndex] | list[MetadataIndex],
+        ) -> None:
             start = summary.count
             for record in records:
                 record.write(summary)
@@ -300,13 +325,15 @@ class McapChunkWriter:
             message_count=self._message_count,
             message_end_time=self._end if self._message_count else 0,
             message_start_time=self._start if self._message_count else 0,
-            metadata_count=0,
+            metadata_count=len(metadata_indexes),
             schema_count=len(self._schemas),
         ).write(summary)
         offsets.append(
             SummaryOffset(Opcode.STATISTICS, summary_start + start, summary.count - start)
         )
         group(Opcode.CHUNK_INDEX, self._chunk_indexes)
+        if metadata_indexes:
+            group(Opcode.METADATA_INDEX, metadata_indexes)
         offset_start = summary_start + summary.count
         for offset in offsets:
             offset.write(summary)

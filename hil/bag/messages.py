@@ -10,6 +10,11 @@ payload with rosbags and with the independent ``mcap_ros2`` decoder.
 
 Reading them back is :mod:`hil.bag.decoding`.
 
+Where each goes (:mod:`hil.bag.topics`): a pose to the lab's topic in the lab's frame
+(mapped back through the :class:`LabFrame`'s transform when it is an arena pose) and to
+``/hil/pose`` in the arena; the velocity and force commands unstamped to the lab's
+topics and stamped to ``/hil/...``; the estimate to ``/hil/odom``.
+
 Conventions: header stamps hold the sample time; the pose yaw is a quaternion
 about z (x, y, z, w order, as ROS stores it); the IMU has no orientation
 (``orientation_covariance[0] = -1``, REP 145). The lab's per-thruster Wrench
@@ -22,6 +27,7 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Callable
+from dataclasses import dataclass, field
 from functools import cache
 from typing import Any
 
@@ -30,9 +36,11 @@ import numpy as np
 from hil.bag import topics
 from hil.bag import typestore as ts
 from hil.bag.errors import RecordValueError
+from hil.core.arena_frame import ArenaTransform
 from hil.core.azimuth import azimuth_vector
 from hil.core.clock import NS_PER_S
 from hil.core.geometry import yaw_quaternion
+from hil.core.qtm_sample import QtmSample
 from hil.core.records import (
     ControllerReady,
     Decision,
@@ -41,6 +49,7 @@ from hil.core.records import (
     StateEstimate,
 )
 from hil.core.samples import (
+    Frame,
     ImuSample,
     ObstacleLayout,
     PoseSample,
@@ -60,6 +69,7 @@ Record = (
     | ObstacleLayout
     | Event
     | ControllerReady
+    | QtmSample
 )
 """Anything the recorder accepts."""
 
@@ -74,11 +84,34 @@ RECORD_TYPES: tuple[type, ...] = (
     ObstacleLayout,
     Event,
     ControllerReady,
+    QtmSample,
 )
 
 Encoded = list[tuple[str, bytes]]
 
 _ENCAPSULATION = b"\x00\x01\x00\x00"  # CDR, little endian
+
+
+@dataclass(frozen=True, slots=True)
+class LabFrame:
+    """The lab's pose frame: how hil's arena poses map back to what the lab's topic holds.
+
+    Attributes:
+        transform: Lab world and mocap body to the arena and the vessel's body origin
+            (the vessel config's ``[ros.transform]``; identity in simulation by default).
+        frame_id: Frame id of the lab's poses (``[ros] pose_frame_id``, ``world_ned``).
+    """
+
+    transform: ArenaTransform = field(default_factory=ArenaTransform)
+    frame_id: str = topics.LAB_FRAME
+
+    def __post_init__(self) -> None:
+        if not self.frame_id or "\x00" in self.frame_id:
+            raise RecordValueError(f"lab pose frame id {self.frame_id!r} is empty or has a NUL")
+
+
+DEFAULT_LAB_FRAME = LabFrame()
+"""Identity transform, ``world_ned``: what simulation records without a vessel config."""
 
 
 @cache
@@ -122,11 +155,33 @@ def _encode_header_only(
     return layout.pack(_ENCAPSULATION, sec, nsec, len(frame), frame, *values)
 
 
-def encode_pose(sample: PoseSample) -> Encoded:
-    """Encode a pose as PoseWithCovarianceStamped in the sample's frame (covariance zero)."""
-    values = (sample.x_m, sample.y_m, 0.0, *yaw_quaternion(sample.yaw_rad), *_ZERO36)
-    layout = _stamped(sample.frame.value, 43)
-    return [(topics.POSE, _encode_header_only(layout, sample.frame.value, sample.t_ns, values))]
+def _pose_payload(frame_id: str, t_ns: int, x_m: float, y_m: float, yaw_rad: float) -> bytes:
+    values = (x_m, y_m, 0.0, *yaw_quaternion(yaw_rad), *_ZERO36)
+    return _encode_header_only(_stamped(frame_id, 43), frame_id, t_ns, values)
+
+
+def encode_pose(sample: PoseSample, lab: LabFrame = DEFAULT_LAB_FRAME) -> Encoded:
+    """Encode a pose as PoseWithCovarianceStamped (covariance zero) in both frames.
+
+    Args:
+        sample: The pose, in the arena or in the lab's frame.
+        lab: The lab's frame and the transform between the two.
+
+    Returns:
+        The lab's pose on the lab's topic (frame ``lab.frame_id``), the arena pose on
+        ``/hil/pose`` (frame ``arena``).
+    """
+    t = lab.transform
+    if sample.frame is Frame.LAB_NED:
+        in_lab, in_arena = sample, t.to_arena(sample)
+    else:
+        in_lab, in_arena = t.to_lab(sample), sample
+    return [
+        (topics.POSE, _pose_payload(lab.frame_id, in_lab.t_ns, in_lab.x_m, in_lab.y_m,
+                                    in_lab.yaw_rad)),
+        (topics.HIL_POSE, _pose_payload(topics.ARENA_FRAME, sample.t_ns, in_arena.x_m,
+                                        in_arena.y_m, in_arena.yaw_rad)),
+    ]  # fmt: skip
 
 
 _ZERO36 = (0.0,) * 36
@@ -151,20 +206,29 @@ def encode_imu(sample: ImuSample) -> Encoded:
     return [(topics.IMU, _encode_header_only(layout, topics.IMU_FRAME, sample.t_ns, values))]
 
 
+def _both_six(lab_topic: str, hil_topic: str, t_ns: int, values: tuple[float, ...]) -> Encoded:
+    """Six doubles unstamped on the lab's topic (Twist, Wrench), stamped on hil's."""
+    stamped = _encode_header_only(_stamped(topics.BODY_FRAME, 6), topics.BODY_FRAME, t_ns, values)
+    _stamp(t_ns)
+    return [(lab_topic, _WRENCH.pack(_ENCAPSULATION, *values)), (hil_topic, stamped)]
+
+
 def encode_velocity_reference(sample: VelocityReference) -> Encoded:
-    """Encode nu_ref as TwistStamped in the body frame (linear.x = u, .y = v, angular.z = r)."""
+    """Encode nu_ref as the lab's Twist and as TwistStamped on /hil (body frame).
+
+    linear.x = u, linear.y = v, angular.z = r.
+    """
     values = (sample.surge_mps, sample.sway_mps, 0.0, 0.0, 0.0, sample.yaw_rate_radps)
-    layout = _stamped(topics.BODY_FRAME, 6)
-    payload = _encode_header_only(layout, topics.BODY_FRAME, sample.t_ns, values)
-    return [(topics.VELOCITY_COMMAND, payload)]
+    return _both_six(topics.VELOCITY_COMMAND, topics.HIL_VELOCITY_COMMAND, sample.t_ns, values)
 
 
 def encode_force(record: ForceCommand) -> Encoded:
-    """Encode tau as WrenchStamped in the body frame (force.x = X, .y = Y, torque.z = N)."""
+    """Encode tau as the lab's Wrench and as WrenchStamped on /hil (body frame).
+
+    force.x = X, force.y = Y, torque.z = N.
+    """
     values = (record.surge_n, record.sway_n, 0.0, 0.0, 0.0, record.yaw_nm)
-    layout = _stamped(topics.BODY_FRAME, 6)
-    payload = _encode_header_only(layout, topics.BODY_FRAME, record.t_ns, values)
-    return [(topics.FORCE_COMMAND, payload)]
+    return _both_six(topics.FORCE_COMMAND, topics.HIL_FORCE_COMMAND, record.t_ns, values)
 
 
 def encode_state_estimate(record: StateEstimate) -> Encoded:
@@ -188,7 +252,7 @@ def encode_state_estimate(record: StateEstimate) -> Encoded:
     frame = topics.ARENA_FRAME.encode() + b"\x00"
     child = topics.BODY_FRAME.encode() + b"\x00"
     payload = layout.pack(_ENCAPSULATION, sec, nsec, len(frame), frame, len(child), child, *values)
-    return [(topics.ODOM, payload)]
+    return [(topics.HIL_ODOM, payload)]
 
 
 _THRUSTERS = _stamped(topics.BODY_FRAME, 5)
@@ -303,6 +367,62 @@ def controller_ready_msg(record: ControllerReady) -> Any:
     )
 
 
+def qtm_msg(record: QtmSample) -> Any:
+    """Return the hil_msgs/Qtm6D message object of a QTM 6D frame."""
+    cls = ts.typestore().types[ts.QTM_6D]
+    return cls(
+        header=_header(record.t_ns, topics.QTM_FRAME),
+        qtm_timestamp_us=record.timestamp_us,
+        frame_number=record.frame_number,
+        body_index=record.body_index,
+        body=record.body,
+        position_mm=np.array(record.position_mm, dtype=np.float64),
+        rotation=np.array(record.rotation, dtype=np.float64),
+        residual_mm=record.residual_mm,
+        drop_rate=record.drop_rate,
+        out_of_sync_rate=record.out_of_sync_rate,
+        drops=record.drops,
+        lost=record.lost,
+    )
+
+
+def _transform_msg(t_ns: int, parent: str, child: str, x_m: float, y_m: float,
+                   yaw_rad: float) -> Any:
+    store = ts.typestore().types
+    qx, qy, qz, qw = yaw_quaternion(yaw_rad)
+    return store["geometry_msgs/msg/TransformStamped"](
+        header=_header(t_ns, parent),
+        child_frame_id=child,
+        transform=store["geometry_msgs/msg/Transform"](
+            translation=store["geometry_msgs/msg/Vector3"](x=x_m, y=y_m, z=0.0),
+            rotation=store["geometry_msgs/msg/Quaternion"](x=qx, y=qy, z=qz, w=qw),
+        ),
+    )
+
+
+def tf_static_msg(t_ns: int, lab: LabFrame) -> Any:
+    """Return the tf2_msgs/TFMessage of the static frames at `t_ns`.
+
+    Two transforms, each the child frame's pose in its parent (REP 105 style):
+    ``lab.frame_id -> arena`` (the arena origin (north, east) m and its x axis's yaw
+    from north) and ``mocap_body -> body`` (the vessel's body origin in the mocap
+    body (forward, starboard) m and its heading offset).
+    """
+    t = lab.transform
+    return ts.typestore().types[topics.TF_TYPE](transforms=[
+        _transform_msg(t_ns, lab.frame_id, topics.ARENA_FRAME, t.origin_north_m,
+                       t.origin_east_m, t.yaw_rad),
+        _transform_msg(t_ns, topics.MOCAP_BODY_FRAME, topics.BODY_FRAME, t.body_offset_x_m,
+                       t.body_offset_y_m, t.body_yaw_rad),
+    ])  # fmt: skip
+
+
+def encode_tf_static(t_ns: int, lab: LabFrame) -> Encoded:
+    """Encode the static frames (:func:`tf_static_msg`) on /tf_static."""
+    _stamp(t_ns)
+    return _serialized(topics.TF_STATIC, topics.TF_TYPE, tf_static_msg(t_ns, lab))
+
+
 def _serialized(topic: str, typename: str, msg: Any) -> Encoded:
     return [(topic, bytes(ts.typestore().serialize_cdr(msg, typename)))]
 
@@ -327,6 +447,11 @@ def encode_controller_ready(record: ControllerReady) -> Encoded:
     return _serialized(topics.CONTROLLERS, ts.CONTROLLER_READY, controller_ready_msg(record))
 
 
+def encode_qtm(record: QtmSample) -> Encoded:
+    """Encode a QTM 6D frame as hil_msgs/Qtm6D on /hil/qtm/6d."""
+    return _serialized(topics.QTM_6D, ts.QTM_6D, qtm_msg(record))
+
+
 ENCODERS: dict[type, Callable[[Any], Encoded]] = {
     PoseSample: encode_pose,
     ImuSample: encode_imu,
@@ -338,17 +463,20 @@ ENCODERS: dict[type, Callable[[Any], Encoded]] = {
     ObstacleLayout: encode_obstacles,
     Event: encode_event,
     ControllerReady: encode_controller_ready,
+    QtmSample: encode_qtm,
 }
 
 
-def encode(record: Record) -> Encoded:
+def encode(record: Record, lab: LabFrame = DEFAULT_LAB_FRAME) -> Encoded:
     """Encode a sample or record as ROS 2 CDR messages.
 
     Args:
         record: Any of :data:`RECORD_TYPES`.
+        lab: The lab's pose frame (for poses).
 
     Returns:
-        ``(topic, payload)`` pairs; one pair, or four for thruster commands.
+        ``(topic, payload)`` pairs: one, two for poses and commands (the lab's topic and
+        hil's), four for thruster commands.
 
     Raises:
         RecordValueError: Unknown record type or a time that does not fit a ROS stamp.
@@ -360,4 +488,6 @@ def encode(record: Record) -> Encoded:
             f"cannot record {type(record).__name__!r}: expected one of "
             f"{sorted(t.__name__ for t in RECORD_TYPES)!r}"
         ) from None
+    if isinstance(record, PoseSample):
+        return encode_pose(record, lab)
     return encoder(record)

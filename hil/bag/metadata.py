@@ -1,7 +1,9 @@
 """rosbag2 ``metadata.yaml``: write it atomically, read it with clear errors.
 
 The layout is rosbag2's version 9, field for field as rosbags' own writer emits
-it, so rosbags' ``Reader``/``AnyReader`` and ``ros2 bag info`` accept it.
+it, so rosbags' ``Reader``/``AnyReader`` and ``ros2 bag info`` accept it. The same
+map goes into each MCAP split as rosbag2's MCAP storage plugin writes it there
+(:func:`rosbag2_record`), so that plugin reads a split on its own as rosbag2's.
 """
 
 from __future__ import annotations
@@ -20,6 +22,10 @@ from hil.bag.errors import BagFormatError
 
 METADATA_FILE = "metadata.yaml"
 VERSION = 9
+ROS_DISTRO = "jazzy"
+"""The ROS 2 distribution whose message definitions and metadata layout hil writes."""
+RECORD_NAME = "rosbag2"
+"""Name of rosbag2's MCAP Metadata record."""
 UNSET_START_NS = 2**63 - 1
 """rosbag2's starting time of a bag without messages."""
 
@@ -105,9 +111,26 @@ def metadata_dict(
                 for f in files
             ],
             "custom_data": dict(custom_data) or None,
-            "ros_distro": "jazzy",
+            "ros_distro": ROS_DISTRO,
         }
     }
+
+
+def rosbag2_record(
+    files: Sequence[FileEntry],
+    topic_entries: Sequence[TopicEntry],
+    custom_data: Mapping[str, str],
+) -> dict[str, str]:
+    """Return the string map of rosbag2's ``"rosbag2"`` MCAP Metadata record.
+
+    rosbag2_storage_mcap (Jazzy) stores, in each file it closes, ``serialized_metadata``:
+    the bag's metadata so far as YAML (the map under ``rosbag2_bagfile_information`` in
+    ``metadata.yaml``, version 9, which holds ``ros_distro``); its reader also takes a
+    ``ROS_DISTRO`` key, which older distributions wrote. Both are written. The YAML is
+    JSON (flow style), as in ``metadata.yaml``.
+    """
+    info = metadata_dict(files, topic_entries, custom_data)["rosbag2_bagfile_information"]
+    return {"serialized_metadata": json.dumps(info, indent=2) + "\n", "ROS_DISTRO": ROS_DISTRO}
 
 
 def write_metadata(

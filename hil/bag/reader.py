@@ -461,7 +461,9 @@ class BagReader:
 
         Args:
             topics: Topics to read; default every topic whose type has a sample
-                (:data:`hil.bag.decoding.SAMPLE_TYPES`).
+                (:data:`hil.bag.decoding.SAMPLE_TYPES`), a stream's lab topic left out
+                where hil's own copy is there (hil format 3: the records hil recorded,
+                once each; the lab's pose as received is read by naming its topic).
             on_error: As in :meth:`decoded`; also covers values a sample refuses (NaN).
 
         Raises:
@@ -471,7 +473,13 @@ class BagReader:
         self.require_hil_run()
         info = self.info
         if topics is None:
-            topics = [t.name for t in info.topics if t.msgtype in SAMPLE_TYPES]
+            present = {t.name for t in info.topics}
+            copied = {
+                lab for lab, own in hil_topics.STREAM_TOPICS_BY_STREAM.items() if own in present
+            }
+            topics = [
+                t.name for t in info.topics if t.msgtype in SAMPLE_TYPES and t.name not in copied
+            ]
         for raw in self.messages(topics):
             try:
                 record = self.sample(raw)

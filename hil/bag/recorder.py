@@ -18,6 +18,10 @@ Design (each choice answers "what is left after SIGKILL?"):
   ``ros2 bag`` and Foxglove open the bag at any moment, up to the last split.
 - ``metadata.yaml`` is written at open too, with the run's description in
   ``custom_data`` (scenario file and hash, seed, hil version, git revision).
+- Each split is whole on its own, as rosbag2 writes one: it starts with ``/tf_static``
+  (the lab frame -> arena and mocap body -> body transforms, at the split's first
+  message time) and ends with rosbag2's ``"rosbag2"`` Metadata record (the bag's
+  metadata so far), so ``ros2 bag info`` and rosbag2's MCAP plugin read it.
 """
 
 from __future__ import annotations
@@ -27,21 +31,28 @@ import os
 import threading
 import time
 from collections import Counter, deque
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import TracebackType
-from typing import IO, Literal, Protocol, Self
+from typing import IO, Any, Literal, Protocol, Self
 
 import numpy as np
 
 from hil import __version__
 from hil.bag import topics
 from hil.bag import typestore as ts
-from hil.bag.columnar import BULK_ENCODERS, Block
+from hil.bag.columnar import BULK_ENCODERS, Block, encode_poses
 from hil.bag.errors import RecorderClosedError, RecorderError, RecordValueError
 from hil.bag.mcap_writer import McapChunkWriter
-from hil.bag.messages import Encoded, Record, encode
-from hil.bag.metadata import FileEntry, TopicEntry, write_metadata
+from hil.bag.messages import Encoded, LabFrame, Record, encode, encode_tf_static
+from hil.bag.metadata import (
+    RECORD_NAME,
+    FileEntry,
+    TopicEntry,
+    rosbag2_record,
+    write_metadata,
+)
 from hil.bag.run_info import RunInfo
 from hil.core.arrays import FloatArray
 from hil.core.records import (
@@ -121,21 +132,39 @@ class _Split:
 class _BagWriter:
     """Writes splits and metadata.yaml; used by one thread only."""
 
-    def __init__(self, bag_dir: Path, custom: dict[str, str], config: RecorderConfig) -> None:
+    def __init__(
+        self, bag_dir: Path, custom: dict[str, str], config: RecorderConfig, lab: LabFrame
+    ) -> None:
         self.dir = bag_dir
         self.custom = custom
         self.config = config
+        self.lab = lab
+        self.encoders: dict[type, Callable[[Sequence[Any]], list[Block]]] = {
+            **BULK_ENCODERS,
+            PoseSample: functools.partial(encode_poses, lab=lab),
+        }
         self.files: list[FileEntry] = []
         self.counts: Counter[str] = Counter()
         self.split: _Split | None = None
         self.messages = 0
 
-    def write_metadata(self) -> None:
-        entries = [
+    def _entries(self, counts: Counter[str]) -> list[TopicEntry]:
+        return [
             TopicEntry(name, topics.TOPIC_TYPES[name], count, _type_hash(topics.TOPIC_TYPES[name]))
-            for name, count in sorted(self.counts.items())
+            for name, count in sorted(counts.items())
         ]
+
+    def write_metadata(self) -> None:
+        entries = self._entries(self.counts)
         write_metadata(self.dir, self.files, entries, self.custom, fsync=self.config.fsync)
+
+    def _split(self, now_s: float, t_ns: int) -> _Split:
+        """Return the split in progress, or open one that starts with /tf_static at `t_ns`."""
+        if self.split is not None:
+            return self.split
+        split = self._open_split(now_s)
+        self.add(t_ns, encode_tf_static(t_ns, self.lab), now_s)
+        return split
 
     def _open_split(self, now_s: float) -> _Split:
         name = f"{self.dir.name}_{len(self.files)}.mcap"
@@ -163,7 +192,7 @@ class _BagWriter:
         return channel
 
     def add(self, t_ns: int, encoded: Encoded, now_s: float) -> None:
-        split = self.split if self.split is not None else self._open_split(now_s)
+        split = self._split(now_s, t_ns)
         for topic, payload in encoded:
             channel = split.channels.get(topic)
             if channel is None:
@@ -176,7 +205,7 @@ class _BagWriter:
         self.messages += len(encoded)
 
     def _add_block(self, block: Block, now_s: float) -> None:
-        split = self.split if self.split is not None else self._open_split(now_s)
+        split = self._split(now_s, int(block.t_ns.min()))
         channel = split.channels.get(block.topic)
         if channel is None:
             channel = self._channel(split, block.topic)
@@ -205,7 +234,7 @@ class _BagWriter:
                 group = groups[type(item)] = []
             group.append(item)
         for kind, records in groups.items():
-            for block in BULK_ENCODERS[kind](records):
+            for block in self.encoders[kind](records):
                 self._add_block(block, now_s)
 
     def tick(self, now_s: float) -> None:
@@ -224,14 +253,19 @@ class _BagWriter:
         split, self.split = self.split, None
         if split is None:
             return
+        entry = FileEntry(split.name, split.start_ns, split.end_ns, sum(split.counts.values()))
+        split.writer.add_metadata(
+            RECORD_NAME,
+            rosbag2_record(
+                [*self.files, entry], self._entries(self.counts + split.counts), self.custom
+            ),
+        )
         split.writer.finish()
         split.stream.flush()
         if self.config.fsync:
             os.fsync(split.stream.fileno())
         split.stream.close()
-        self.files.append(
-            FileEntry(split.name, split.start_ns, split.end_ns, sum(split.counts.values()))
-        )
+        self.files.append(entry)
         self.counts.update(split.counts)
         self.write_metadata()
 
@@ -257,6 +291,10 @@ class Recorder:
         path: The bag directory to create (must not exist, or be empty).
         run: What produced the run (stored as ``custom_data``).
         config: How to write.
+        lab: The lab's pose frame and the transform to the arena (the vessel config's
+            ``[ros.transform]`` and ``pose_frame_id``): arena poses go to the lab's pose
+            topic mapped back through it, and onto ``/tf_static``. None: identity,
+            ``world_ned`` (simulation without a vessel config).
     """
 
     def __init__(
@@ -264,10 +302,12 @@ class Recorder:
         path: str | Path,
         run: RunInfo | None = None,
         config: RecorderConfig | None = None,
+        lab: LabFrame | None = None,
     ) -> None:
         self.path = Path(path)
         self.run = run if run is not None else RunInfo()
         self.config = config if config is not None else RecorderConfig()
+        self.lab = lab if lab is not None else LabFrame()
         self._bag: _BagWriter | None = None
         self._pending: deque[Record | tuple[int, Encoded]] = deque()
         self._stop = threading.Event()
@@ -303,7 +343,7 @@ class Recorder:
             raise RecorderError(f"{str(self.path)!r} exists and is not an empty directory")
         try:
             self.path.mkdir(parents=True, exist_ok=True)
-            bag = _BagWriter(self.path, self.run.custom_data(), self.config)
+            bag = _BagWriter(self.path, self.run.custom_data(), self.config, self.lab)
             bag.write_metadata()
         except OSError as err:
             raise RecorderError(f"cannot create bag {str(self.path)!r}: {err}") from err

@@ -27,6 +27,13 @@ The rule for imperfect input, the same on every topic:
 A stream must be in one frame, and poses in the arena frame, else
 :class:`~hil.bag.errors.FrameError`. A log that is not a hil run raises
 :class:`~hil.bag.errors.NotAHilRunError`.
+
+Both layouts of hil's logs are read, told apart by their topics: a log of hil format 3
+holds hil's arena pose, estimate and stamped commands on ``/hil/...``
+(:data:`~hil.bag.topics.STREAM_TOPICS`), and the streams are read from there (the lab's
+topics beside them hold the pose in the lab's frame and the unstamped commands); a log
+of format 2 holds them on the lab's names, read as before. ``/tf_static`` gives
+:attr:`RunData.lab_frame`, ``/hil/qtm/6d`` :attr:`RunData.qtm`.
 """
 
 from __future__ import annotations
@@ -42,7 +49,7 @@ import numpy as np
 
 from hil.bag import topics
 from hil.bag.columns import to_columns
-from hil.bag.decoding import to_record
+from hil.bag.decoding import lab_frame_from_tf, to_record
 from hil.bag.errors import BagError, FrameError, NotAHilRunError, OldLogFormatError
 from hil.bag.lab_streams import (
     LAB_POSE_FRAME,
@@ -51,12 +58,13 @@ from hil.bag.lab_streams import (
     thrusters_from_wrenches,
     unstamped_values,
 )
-from hil.bag.messages import Record
+from hil.bag.messages import LabFrame, Record
 from hil.bag.reader import BagInfo, BagReader, SkippedMessage
 from hil.bag.repairs import Repair, RepairKind, tidy
 from hil.bag.run_info import RunInfo
 from hil.bag.storage import RawMessage
 from hil.core.arrays import FloatArray, IntArray
+from hil.core.qtm_sample import QtmSample
 from hil.core.records import ControllerReady, ControllerSource, Decision, Event
 from hil.core.samples import ObstacleLayout
 from hil.core.shapes import Rect
@@ -174,6 +182,10 @@ class RunData:
             has no decisions, layouts or events to compare with.
         notes: What the loader assumed for a lab bag (the pose transform, log times
             for unstamped messages), one line each.
+        qtm: The QTM 6D frames as received (``/hil/qtm/6d``; runs with the qtm pose
+            backend), in time order.
+        lab_frame: The lab's pose frame and transform from ``/tf_static`` (hil format
+            3); None when the log has none.
     """
 
     path: Path
@@ -192,6 +204,8 @@ class RunData:
     skipped: tuple[SkippedMessage, ...] = ()
     lab_only: bool = False
     notes: tuple[str, ...] = ()
+    qtm: tuple[QtmSample, ...] = ()
+    lab_frame: LabFrame | None = None
 
     @property
     def run(self) -> RunInfo | None:
@@ -423,6 +437,13 @@ class _Loader:
             raise ValueError(f"{raw.msgtype!r} on {raw.topic!r} has no record")
         return record
 
+    def lab_frame(self, raws: list[RawMessage]) -> LabFrame | None:
+        """Return the first /tf_static message's lab frame (None: none, or not hil's pair)."""
+        frames = self._decoded(
+            topics.TF_STATIC, raws, lambda raw: lab_frame_from_tf(self.reader.decode(raw))
+        )
+        return next((f for f in frames if f is not None), None)
+
     def layout(self, raw: RawMessage) -> Layout:
         msg = self.reader.decode(raw)
         record = to_record(raw.msgtype, msg)
@@ -472,6 +493,26 @@ def _require_streams(reader: BagReader, lab: LabTopics | None) -> None:
         )
 
 
+def _stream_sources(
+    present: Sequence[str], renames: Mapping[str, str]
+) -> dict[str, str]:
+    """Return bag topic -> the stream it is read as (see the module docstring).
+
+    `present`: the bag's decodable topics; `renames`: the lab's topic names (a vessel
+    config's) -> the stream. A stream that one of hil's own topics holds (hil format 3)
+    is read from there only.
+    """
+    source = {name: renames.get(name, name) for name in present}
+    own = {topics.STREAM_TOPICS[name] for name in present if name in topics.STREAM_TOPICS}
+    out = {}
+    for name, stream in source.items():
+        if name in topics.STREAM_TOPICS:
+            out[name] = topics.STREAM_TOPICS[name]
+        elif stream not in own:
+            out[name] = stream
+    return out
+
+
 def load_run(path: str | Path, lab: LabTopics | None = None) -> RunData:
     """Read a recorded run (see the module docstring for the rule on imperfect input).
 
@@ -498,11 +539,12 @@ def load_run(path: str | Path, lab: LabTopics | None = None) -> RunData:
         _require_streams(reader, lab)
         info = reader.info
         _require_current_format(path, info.custom)
-        read = (*FIELDS, *RECORD_TOPICS, *WRENCH_TOPICS)
+        read = (*FIELDS, *RECORD_TOPICS, *WRENCH_TOPICS, topics.QTM_6D, topics.TF_STATIC)
         by_topic: dict[str, list[RawMessage]] = {name: [] for name in read}
-        # A bag topic is read as the lab's stream it names (the config's names), else
-        # as hil's of the same name; the per-thruster commands only without hil's copy.
-        source = {t.name: renames.get(t.name, t.name) for t in info.topics if t.decodable}
+        # A bag topic is read as hil's stream it holds (format 3), else as the lab's
+        # stream it names (the config's names), else as hil's of the same name; the
+        # per-thruster commands only without hil's copy.
+        source = _stream_sources([t.name for t in info.topics if t.decodable], renames)
         skip = set(WRENCH_TOPICS) if topics.THRUSTERS in source.values() else set()
         wanted = [n for n, stream in source.items() if stream in by_topic and stream not in skip]
         for raw in reader.messages(wanted):  # one pass over the chunks
@@ -527,6 +569,8 @@ def load_run(path: str | Path, lab: LabTopics | None = None) -> RunData:
         ready = loader.records(
             topics.CONTROLLERS, by_topic[topics.CONTROLLERS], loader.record, _record_key
         )
+        qtm = loader.records(topics.QTM_6D, by_topic[topics.QTM_6D], loader.record, _record_key)
+        lab_frame = loader.lab_frame(by_topic[topics.TF_STATIC])
     return RunData(
         path=Path(path),
         info=info,
@@ -544,4 +588,6 @@ def load_run(path: str | Path, lab: LabTopics | None = None) -> RunData:
         skipped=tuple(loader.skipped),
         lab_only=_lab_only(info),
         notes=tuple(loader.notes),
+        qtm=tuple(r for r in qtm if isinstance(r, QtmSample)),
+        lab_frame=lab_frame,
     )

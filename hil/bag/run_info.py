@@ -13,8 +13,14 @@ from pathlib import Path
 
 from hil import __version__
 
-FORMAT_VERSION = "2"
-"""Version of hil's log layout, stored as ``custom_data['hil_format']``."""
+FORMAT_VERSION = "3"
+"""Version of hil's log layout, stored as ``custom_data['hil_format']``.
+
+3: the lab's topics hold the lab's types and frames (pose as received in the lab's
+frame, unstamped Twist and Wrench commands); hil's arena pose, estimate and stamped
+commands on ``/hil/...``; ``/tf_static``; rosbag2's metadata record in each split.
+2: hil's arena pose, estimate and stamped commands on the lab's topic names. Both
+are read (:data:`hil.bag.topics.STREAM_TOPICS`)."""
 
 
 def git_revision(cwd: Path | None = None) -> str:

@@ -31,6 +31,7 @@ OBSTACLE_LAYOUT = f"{PACKAGE}/msg/ObstacleLayout"
 THRUSTER_COMMANDS = f"{PACKAGE}/msg/ThrusterCommands"
 EVENT = f"{PACKAGE}/msg/Event"
 CONTROLLER_READY = f"{PACKAGE}/msg/ControllerReady"
+QTM_6D = f"{PACKAGE}/msg/Qtm6D"
 
 
 def hil_type_names() -> tuple[str, ...]:

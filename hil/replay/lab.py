@@ -73,18 +73,7 @@ first decision, a late command at a decision's tick)."""
 
 def pose_map(transform: ArenaTransform) -> PoseMap:
     """Return the vectorized :meth:`ArenaTransform.to_arena` of lab poses (N, 3) (n, e, yaw)."""
-
-    def to_arena(lab: FloatArray) -> FloatArray:
-        yaw = lab[:, 2]
-        c, s = np.cos(yaw), np.sin(yaw)
-        north = lab[:, 0] + c * transform.body_offset_x_m - s * transform.body_offset_y_m
-        east = lab[:, 1] + s * transform.body_offset_x_m + c * transform.body_offset_y_m
-        dn, de = north - transform.origin_north_m, east - transform.origin_east_m
-        ca, sa = np.cos(transform.yaw_rad), np.sin(transform.yaw_rad)
-        psi = wrap_angles(yaw + transform.body_yaw_rad - transform.yaw_rad)
-        return np.column_stack([ca * dn + sa * de, -sa * dn + ca * de, psi])
-
-    return to_arena
+    return transform.poses_to_arena
 
 
 def lab_topics(config: VesselConfig | None = None, source: str = "") -> LabTopics:

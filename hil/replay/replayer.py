@@ -55,6 +55,7 @@ from hil.replay.estimation_check import check_estimation
 from hil.replay.intervals import check_contract
 from hil.replay.lab import NOT_JUDGED, lab_topics, replay_lab, require_pose
 from hil.replay.options import ReplayOptions
+from hil.replay.qtm_check import check_qtm, has_qtm
 from hil.replay.regression import Check, LogReport
 from hil.replay.resim import check_resim
 from hil.replay.stack_rerun import check_stack
@@ -91,7 +92,7 @@ def replay_log(
         ctx = ReplayContext(run, scenario, caches, options)
         checks: tuple[Check, ...] = ()
         for entry in CHECKS:
-            if entry.wanted(options):
+            if entry.wanted(options) and entry.applies(run):
                 step(entry.name)
                 checks += (entry.check(ctx.after(checks)),)
     except _REFUSED as err:
@@ -104,6 +105,10 @@ def _always(_options: ReplayOptions) -> bool:
     return True
 
 
+def _any_run(_run: RunData) -> bool:
+    return True
+
+
 @dataclass(frozen=True)
 class CheckEntry:
     """One check of the replay and when it is made.
@@ -112,11 +117,13 @@ class CheckEntry:
         name: The check's name (the progress step and ``Check.name``).
         check: Makes it.
         wanted: Whether the options ask for it.
+        applies: Whether the run holds what it checks (else it is left out, not SKIP).
     """
 
     name: str
     check: ReplayCheck
     wanted: Callable[[ReplayOptions], bool] = _always
+    applies: Callable[[RunData], bool] = _any_run
 
 
 CHECKS: tuple[CheckEntry, ...] = (
@@ -127,6 +134,7 @@ CHECKS: tuple[CheckEntry, ...] = (
     CheckEntry("contract", check_contract),
     CheckEntry("stop", check_stop),
     CheckEntry("estimation", check_estimation),
+    CheckEntry("qtm", check_qtm, applies=has_qtm),
 )
 """The checks of a hil log, in order (the contract marks intervals the earlier ones failed)."""
 

@@ -26,6 +26,7 @@ from hil.adapters.interfaces import ObstacleSource, PoseSource
 from hil.adapters.obstacles import StaticObstacleSource
 from hil.adapters.qtm import QtmPoseSource
 from hil.adapters.ros import RosBackendError, RosWorld
+from hil.bag.messages import DEFAULT_LAB_FRAME, LabFrame
 from hil.bag.recorder import Recorder
 from hil.bag.run_info import RunInfo
 from hil.runs.feed_watch import FeedWatch
@@ -163,7 +164,7 @@ def _qtm_health(source: QtmPoseSource) -> FeedHealth:
 
 
 def _pose_feed(closing: ExitStack, config: VesselConfig, ros: RosWorld, log: RunLog,
-               feeds: FeedWatch) -> tuple[PoseSource, _PoseFeed, FeedView]:
+               feeds: FeedWatch, recorder: Recorder) -> tuple[PoseSource, _PoseFeed, FeedView]:
     """Return where the run's poses come from: the ROS topic, or QTM with a ``[qtm]`` table."""
     pose_health = ros.pose_health
     heard: Callable[[int], tuple[Heard, Heard]] | None = ros.heard
@@ -173,6 +174,7 @@ def _pose_feed(closing: ExitStack, config: VesselConfig, ros: RosWorld, log: Run
         assert ros.clock is not None
         qtm = closing.enter_context(QtmPoseSource(
             config.qtm, ros.clock, on_event=lambda e: log.event(e.t_ns, e.level, e.code, e.text),
+            on_sample=recorder.record,
         ))  # fmt: skip
         source, pose, heard = qtm, _qtm_pose(qtm), None
         pose_health = functools.partial(_qtm_health, qtm)
@@ -206,13 +208,16 @@ def run_on_ros(config: VesselConfig, out_dir: Path | None = None,
     with RosWorld(config.ros, obstacles=layout, min_move_m=scenario.tracking.position_tolerance_m,
                   stale_after_s=max(1.0, config.loop.pose_timeout_s)) as ros, Recorder(
             out_dir, RunInfo.current(config.scenario, scenario_hash(scenario), None,
-                                     backend="ros")) as recorder, ExitStack() as closing:
+                                     backend="ros"),
+            lab=LabFrame(config.ros.transform,
+                         config.ros.pose_frame_id or DEFAULT_LAB_FRAME.frame_id),
+    ) as recorder, ExitStack() as closing:
         assert ros.clock is not None
         assert ros.thruster_sink is not None
         log = _telemetry(closing, ros, recorder if live is None else live(scenario, recorder))
         feeds = FeedWatch(ros, log, progress)
         obstacles: ObstacleSource = ros.obstacle_source or StaticObstacleSource(layout)
-        pose_source, pose, feed_view = _pose_feed(closing, config, ros, log, feeds)
+        pose_source, pose, feed_view = _pose_feed(closing, config, ros, log, feeds, recorder)
         world = World(ros.clock, pose_source, ros.imu_source, obstacles, ros.thruster_sink)
         runtime = build_runtime(scenario, world, log, config.loop, synthesizer,
                                 ResynthesisMode.THREAD)

@@ -20,7 +20,8 @@ Entity paths mirror frames:
 - ``world/controller/{safe_inputs,chosen_input,winning_set}``: the controller's
   view at each decision;
 - ``plots/...``: velocity per axis, tracking error with the velocity envelope band,
-  thrusters, azimuth angles, force, value, synthesis time; ``events``: faults.
+  thrusters, azimuth angles, force, value, synthesis time, QTM's frames as received
+  (``plots/qtm/...``, qtm backend runs); ``events``: faults.
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ from hil.views.controller_view import ControllerView
 from hil.views.rerun_plots import (
     log_events,
     log_force,
+    log_qtm,
     log_synthesis_time,
     log_thrusters,
     log_tracking_error,
@@ -105,6 +107,7 @@ def log_run(
     rows += log_value(rec, run)
     rows += log_synthesis_time(rec, run)
     rows += log_events(rec, run)
+    rows += log_qtm(rec, run)
     if replayed is not None:
         rows += log_replayed_decisions(rec, run.decisions, replayed, tau_s)
     return rows

@@ -5,7 +5,9 @@ Velocity per axis (commanded and estimated), the tracking error of
 the velocity envelope replay judges it against (the transient budget's envelope of
 the class of the decision in force, at the time since it, plus the velocity
 estimate's tolerance), thruster commands and azimuth angles, the force demand, the
-value at each decision, synthesis times and the events.
+value at each decision, synthesis times, the events, and for a run with the qtm pose
+backend QTM's frames as received (``plots/qtm/...``: position in mm, NaN where QTM lost
+the body; drops and losses counted by hil; QTM's own drop and out-of-sync rates).
 """
 
 from __future__ import annotations
@@ -134,3 +136,17 @@ def log_events(rec: rr.RecordingStream, run: RunData) -> int:
         "events", indexes=[time_column(t_ns)], columns=rr.TextLog.columns(text=text, level=levels)
     )
     return len(run.events)
+
+
+def log_qtm(rec: rr.RecordingStream, run: RunData) -> int:
+    """Log QTM's 6D frames as received: position (mm), drops and losses, QTM's rates."""
+    if not run.qtm:
+        return 0
+    t_ns = np.array([s.t_ns for s in run.qtm], dtype=np.int64)
+    position = np.array([s.position_mm for s in run.qtm], dtype=np.float64)
+    counts = np.array([(s.drops, s.lost) for s in run.qtm], dtype=np.float64)
+    rates = np.array([(s.drop_rate, s.out_of_sync_rate) for s in run.qtm], dtype=np.float64)
+    rows = send_scalars(rec, "plots/qtm/position_mm", Series(t_ns, position))
+    rows += send_scalars(rec, "plots/qtm/drops_and_losses", Series(t_ns, counts))
+    rows += send_scalars(rec, "plots/qtm/qtm_drop_and_out_of_sync_rate", Series(t_ns, rates))
+    return rows

@@ -45,7 +45,7 @@ def test_fast_decoder_equals_rosbags_and_to_record(record: Record) -> None:
 
 
 def test_fast_decoder_leaves_a_foreign_layout_to_rosbags() -> None:
-    ((_, payload),) = encode(PoseSample(0, 1.0, 2.0, 0.5))
+    _, (_, payload) = encode(PoseSample(0, 1.0, 2.0, 0.5))  # the lab's pose, then /hil/pose
     big_endian = b"\x00\x00" + payload[2:]
     assert FAST_DECODERS[topics.POSE_TYPE](big_endian) is None
     assert FAST_DECODERS[topics.POSE_TYPE](payload[:-8]) is None

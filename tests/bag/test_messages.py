@@ -13,9 +13,9 @@ from hil.bag import topics
 from hil.bag import typestore as ts
 from hil.bag.decoding import to_record
 from hil.bag.errors import RecordValueError
-from hil.bag.messages import Record, encode
+from hil.bag.messages import DEFAULT_LAB_FRAME, Record, encode
 from hil.core.records import Decision, Event, EventLevel, StateEstimate
-from hil.core.samples import PoseSample, ThrusterCommand
+from hil.core.samples import Frame, PoseSample, ThrusterCommand
 from tests.bag.bag_streams import one_of_each
 
 
@@ -34,6 +34,9 @@ def _fields(record: Any) -> dict[str, Any]:
     return {name: getattr(record, name) for name in record.__slots__}
 
 
+IDENTITY = DEFAULT_LAB_FRAME.transform
+
+
 @pytest.mark.parametrize("record", one_of_each(1_234_567_891, 3), ids=lambda r: type(r).__name__)
 def test_rosbags_decodes_what_hil_encodes(record: Record) -> None:
     store = ts.typestore()
@@ -44,16 +47,29 @@ def test_rosbags_decodes_what_hil_encodes(record: Record) -> None:
         msg = store.deserialize_cdr(payload, msgtype)
         if topic != topics.THRUSTERS and isinstance(record, ThrusterCommand):
             continue  # the lab's per-thruster topics are checked below
-        assert_same(to_record(msgtype, msg), record)
+        if topic == topics.POSE and isinstance(record, PoseSample):  # lab frame (identity)
+            lab = record if record.frame is Frame.LAB_NED else IDENTITY.to_lab(record)
+            assert_same(to_record(msgtype, msg), lab)
+        elif msgtype in (topics.TWIST_TYPE, topics.WRENCH_TYPE):  # the lab's unstamped command
+            assert to_record(msgtype, msg) is None
+            stamped = dict(pairs)[topics.STREAM_TOPICS_BY_STREAM[topic]]
+            assert payload[4:] == stamped[-48:]  # the same six doubles
+        elif topic == topics.HIL_POSE and isinstance(record, PoseSample):  # the arena's
+            arena = record if record.frame is Frame.ARENA else IDENTITY.to_arena(record)
+            assert_same(to_record(msgtype, msg), arena)
+        else:
+            assert_same(to_record(msgtype, msg), record)
         # rosbags' own serializer gives the same bytes as hil's struct layouts.
         assert bytes(store.serialize_cdr(msg, msgtype)) == payload
 
 
 def test_stamp_holds_the_sample_time() -> None:
-    ((topic, payload),) = encode(PoseSample(3_000_000_007, 0.0, 0.0, 0.0))
-    msg: Any = ts.typestore().deserialize_cdr(payload, topics.TOPIC_TYPES[topic])
-    assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (3, 7)
-    assert msg.header.frame_id == "arena"
+    (lab, lab_payload), (topic, payload) = encode(PoseSample(3_000_000_007, 0.0, 0.0, 0.0))
+    assert (lab, topic) == (topics.POSE, topics.HIL_POSE)
+    for name, data, frame in ((lab, lab_payload, "world_ned"), (topic, payload, "arena")):
+        msg: Any = ts.typestore().deserialize_cdr(data, topics.TOPIC_TYPES[name])
+        assert (msg.header.stamp.sec, msg.header.stamp.nanosec) == (3, 7)
+        assert msg.header.frame_id == frame
 
 
 def test_lab_thruster_topics_follow_the_lab_convention() -> None:

@@ -25,6 +25,7 @@ from hil.bag.reader import BagReader
 from hil.bag.recorder import Recorder, RecorderConfig
 from hil.bag.run_info import RunInfo
 from hil.bag.typestore import typestore
+from hil.core.arena_frame import ArenaTransform
 from hil.core.records import Decision, EventLevel, ForceCommand, StateEstimate
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
 from hil.core.shapes import Rect
@@ -36,8 +37,15 @@ RUN = RunInfo("scenarios/paper.toml", "sha256:abc", 7, "0.1.0", "deadbeef", "sim
 
 
 def expected_back(records: Sequence[R]) -> list[R]:
-    """What reading the bag's records yields: everything, in time order (stable)."""
-    return sorted(records, key=lambda r: r.t_ns)
+    """What reading hil's topics yields: everything, poses in the arena, in time order (stable).
+
+    The recorder's lab frame is the identity here.
+    """
+    arena: list[R] = [
+        ArenaTransform().to_arena(r) if isinstance(r, PoseSample) else r  # type: ignore[misc]
+        for r in records
+    ]
+    return sorted(arena, key=lambda r: r.t_ns)
 
 
 def streams(records: Sequence[Record]) -> dict[tuple[str, object], list[Record]]:
@@ -58,6 +66,10 @@ def same(got: Record, want: Record) -> bool:
     return got == want
 
 
+LAB_SIDE = frozenset({topics.POSE, topics.VELOCITY_COMMAND, topics.FORCE_COMMAND, topics.TF_STATIC})
+"""The lab's topics hil fills beside its own (and /tf_static): no record of their own."""
+
+
 @pytest.mark.parametrize("threaded", [True, False], ids=["threaded", "inline"])
 def test_round_trip_every_stream(tmp_path: Path, records: list[Record], threaded: bool) -> None:
     bag = tmp_path / "run"
@@ -66,18 +78,24 @@ def test_round_trip_every_stream(tmp_path: Path, records: list[Record], threaded
             recorder.record(record)
     assert recorder.files == ("run_0.mcap",)
     with BagReader(bag) as reader:
-        got = [r for _, _, r in reader.records()]
+        # hil's own copies; the lab's topics (pose in its frame, unstamped commands) aside
+        own = [t.name for t in reader.info.topics if t.name not in LAB_SIDE]
+        got = [r for _, _, r in reader.records(own)]
         info = reader.info
     # Per stream, in time order (ties keep arrival order); streams interleave freely.
     want = streams(expected_back(records))
     assert list(want) == list(streams(got))
     for key, got_stream in streams(got).items():
         assert len(got_stream) == len(want[key])
-        for g, w in zip(got_stream, want[key], strict=True):
+        def order(r: Record) -> tuple[int, str]:  # ties in time: any order
+            return r.t_ns, f"{getattr(r, 'x_m', 0.0):.6f}"
+
+        for g, w in zip(sorted(got_stream, key=order), sorted(want[key], key=order), strict=True):
             assert same(g, w), (g, w)
     assert info.run == RUN
     assert info.problems == ()
-    assert info.message_count == 3 * (len(records) // 3 + 3)  # thrusters fan out to 4 topics
+    # poses and commands go to two topics, thrusters to four; one /tf_static per split
+    assert info.message_count == sum(len(encode(r)) for r in records) + 1
 
 
 def test_rosbags_reads_metadata_and_decodes_custom_types(
@@ -98,7 +116,7 @@ def test_rosbags_reads_metadata_and_decodes_custom_types(
             if connection.topic == topics.DECISION:
                 assert msg.scenario_hash == "sha256:abc"
         assert counts[topics.DECISION] == 6
-        assert set(counts) == set(topics.TOPIC_TYPES)
+        assert set(counts) == set(topics.TOPIC_TYPES) - {topics.QTM_6D}  # no qtm backend
 
 
 def test_mcap_ros2_decodes_every_message(tmp_path: Path, records: list[Record]) -> None:
@@ -138,8 +156,11 @@ def test_splits_are_closed_and_listed(tmp_path: Path) -> None:
     assert len(recorder.files) >= 2
     store = typestore()
     with RosbagsReader(bag) as plain:
-        assert plain.message_count == 40
-        msgs: list[Any] = [store.deserialize_cdr(raw, c.msgtype) for c, _, raw in plain.messages()]
+        assert plain.message_count == 40 + len(recorder.files)  # one /tf_static per split
+        imu = [c for c in plain.connections if c.topic == topics.IMU]
+        msgs: list[Any] = [
+            store.deserialize_cdr(raw, c.msgtype) for c, _, raw in plain.messages(imu)
+        ]
         rates = [m.angular_velocity.z for m in msgs]
     assert sorted(rates) == [float(i) for i in range(40)]
 
@@ -167,12 +188,12 @@ def test_run_log_interface(tmp_path: Path) -> None:
         log.thrusters(ThrusterCommand.zero(7))
     with BagReader(bag) as reader:
         got = {topic: record for topic, _, record in reader.records()}
-    odom = got[topics.ODOM]
+    odom = got[topics.HIL_ODOM]
     assert isinstance(odom, StateEstimate)
     assert odom.yaw_rad == pytest.approx(0.5, abs=1e-12)
     assert odom.eta()[:2].tolist() == [1.0, 2.0]
     assert odom.nu().tolist() == [0.1, 0.2, 0.3]
-    assert got[topics.FORCE_COMMAND] == ForceCommand(5, 1.0, 2.0, 3.0)
+    assert got[topics.HIL_FORCE_COMMAND] == ForceCommand(5, 1.0, 2.0, 3.0)
     assert got[topics.THRUSTERS] == ThrusterCommand.zero(7)
 
 
@@ -264,7 +285,8 @@ def test_bulk_and_single_encoders_agree() -> None:
                     assert got is not None
                     assert same(got, want)
                 checked += 1
-    assert checked == 5 * (len(groups) + 3)  # thrusters: four topics
+    # poses (arena and lab groups) and commands: two topics each, thrusters: four
+    assert checked == 5 * (len(groups) + 7)
 
 
 def test_recorder_is_the_runtimes_run_log(tmp_path: Path) -> None:
@@ -278,4 +300,5 @@ def test_recorder_is_the_runtimes_run_log(tmp_path: Path) -> None:
     log.obstacles(ObstacleLayout(1, (Rect(0.0, 1.0, 0.0, 1.0),)))
     log.close()
     with BagReader(tmp_path / "run") as reader:
-        assert {t for t, _, _ in reader.records()} == {topics.POSE, topics.IMU, topics.OBSTACLES}
+        own = {t for t, _, _ in reader.records()}  # the lab's pose copy left out
+        assert own == {topics.HIL_POSE, topics.IMU, topics.OBSTACLES}

@@ -35,7 +35,7 @@ O1 = Rect(1.75, 2.25, -3.0, 0.0)
 
 
 def _nan_pose(t_ns: int) -> bytes:
-    ((_, good),) = encode(PoseSample(t_ns, 1.0, 2.0, 0.5))
+    _, (_, good) = encode(PoseSample(t_ns, 1.0, 2.0, 0.5))  # the arena pose, as format 2 held
     bad = bytearray(good)
     offset = len(good) - 43 * 8  # x: the first of the 43 doubles after the header
     bad[offset : offset + 8] = struct.pack("<d", math.nan)
@@ -106,7 +106,7 @@ def test_the_rule_on_a_bag_with_bad_duplicate_and_late_messages(tmp_path: Path) 
         (10 * MS, _pose(1)),
         (10 * MS, _pose(1)),  # exact duplicate
         (20 * MS, _pose(2)),
-        (40 * MS, (topics.POSE, _nan_pose(40 * MS))),  # bad: NaN
+        (40 * MS, (topics.HIL_POSE, _nan_pose(40 * MS))),  # bad: NaN
         (50 * MS, _pose(5)),
         (55 * MS, late),
         (60 * MS, PoseSample(60 * MS, 9.0, 9.0, 0.0)),
@@ -145,7 +145,7 @@ def test_the_rule_on_a_bag_with_bad_duplicate_and_late_messages(tmp_path: Path) 
     assert found[topics.POSE, RepairKind.REORDERED].t_ns == 30 * MS
     assert found[topics.POSE, RepairKind.DUPLICATE].t_ns == 10 * MS
     assert found[topics.DECISION, RepairKind.DUPLICATE].count == 1
-    assert [(s.topic, s.t_ns) for s in run.skipped] == [(topics.POSE, 40 * MS)]
+    assert [(s.topic, s.t_ns) for s in run.skipped] == [(topics.HIL_POSE, 40 * MS)]
     assert len(run.warnings) == len(run.repairs)
     assert any("go back in time" in w and "t=30000000 ns" in w for w in run.warnings)
     assert any("dropped 1 duplicated" in w and "t=10000000 ns" in w for w in run.warnings)
@@ -154,7 +154,9 @@ def test_the_rule_on_a_bag_with_bad_duplicate_and_late_messages(tmp_path: Path) 
 
 def test_poses_outside_the_arena_frame_are_refused(tmp_path: Path) -> None:
     path = tmp_path / "ned"
-    write_bag(path, RunInfo(), [PoseSample(0, 1.0, 2.0, 0.0, Frame.LAB_NED)], CONFIG)
+    # A log of hil format 2's layout (no /hil/pose) whose pose topic holds the lab's frame.
+    (lab_pose, payload), _ = encode(PoseSample(0, 1.0, 2.0, 0.0, Frame.LAB_NED))
+    _mcap(path, [(0, (lab_pose, payload))])
     with pytest.raises(FrameError, match="'world_ned'"):
         load_run(path)
 

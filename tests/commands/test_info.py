@@ -40,7 +40,7 @@ def bag(tmp_path: Path) -> Path:
 def test_text_summary(bag: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert run_info(str(bag)) == 0
     out = capsys.readouterr().out
-    assert "messages:  5" in out
+    assert "messages:  6" in out  # 5 samples and /tf_static
     assert "/voyager/measurement/imu" in out
     assert "scenario paper.toml (hash sha256:abc), seed 4" in out
     assert "start 1.000000000 s, end 1.040000000 s" in out
@@ -50,10 +50,12 @@ def test_text_summary(bag: Path, capsys: pytest.CaptureFixture[str]) -> None:
 def test_json_summary(bag: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert run_info(str(bag), "--json") == 0
     data = json.loads(capsys.readouterr().out)
-    assert data["message_count"] == 5
+    assert data["message_count"] == 6  # 5 samples and /tf_static
     assert data["hil_run"] is True
     assert data["custom"]["seed"] == "4"
-    assert data["topics"][0]["type"] == "sensor_msgs/msg/Imu"
+    types = {t["name"]: t["type"] for t in data["topics"]}
+    assert types == {"/voyager/measurement/imu": "sensor_msgs/msg/Imu",
+                     "/tf_static": "tf2_msgs/msg/TFMessage"}  # fmt: skip
 
 
 def test_missing_log_is_one_line_and_exit_2(

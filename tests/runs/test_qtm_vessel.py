@@ -31,8 +31,11 @@ import pytest
 from rerun.chunk import RrdReader
 
 from hil.bag.reader import BagReader
+from hil.bag.run_data import load_run
 from hil.core.config import ConfigError
 from hil.core.records import Event
+from hil.replay.qtm_check import judge_qtm
+from hil.replay.regression import Status
 from hil.runs.vessel_config import VesselConfig
 from tests.adapters.qtm_server import QtmTestServer
 from tests.runs.dds_processes import dds_env, own_domain, stop
@@ -166,12 +169,29 @@ body = "vessel"
     with BagReader(out) as reader:
         records = list(reader.records(["/hil/events", "/hil/decision"]))
         counts = {t.name: t.message_count for t in reader.info.topics}
+        types = {t.name: t.msgtype for t in reader.info.topics}
     codes = [r.code for _, _, r in records if isinstance(r, Event)]
     assert "qtm_connected" in codes
     assert "pose_lost" not in codes
     assert "estimate_inconsistent" not in codes
     assert counts["/hil/decision"] >= 4  # a decision every 2 s after the filter settled
-    assert counts["/voyager/measurement/pose"] > 600  # QTM's 100 Hz, recorded as received
+    assert counts["/voyager/measurement/pose"] > 600  # QTM's 100 Hz, in the lab's frame
+    # Every QTM frame as received, and the arena pose is each frame mapped through /tf_static.
+    assert counts["/hil/qtm/6d"] >= counts["/hil/pose"] == counts["/voyager/measurement/pose"]
+    # The lab's topics in the lab's types (rosbags reads the types from the bag).
+    assert types["/voyager/measurement/pose"] == "geometry_msgs/msg/PoseWithCovarianceStamped"
+    assert types["/voyager/control/velocity/command"] == "geometry_msgs/msg/Twist"
+    assert types["/voyager/control/force/command"] == "geometry_msgs/msg/Wrench"
+    assert types["/hil/velocity/command"] == "geometry_msgs/msg/TwistStamped"
+    assert types["/tf_static"] == "tf2_msgs/msg/TFMessage"
+    run = load_run(out)
+    assert run.lab_frame is not None
+    assert run.lab_frame.frame_id == "world_ned"
+    assert len(run.qtm) == counts["/hil/qtm/6d"]
+    assert {(s.body, s.body_index) for s in run.qtm} == {("vessel", 1)}
+    judged = judge_qtm(run)
+    assert judged.status is Status.PASS, judged.summary
+    assert judged.metrics["matched"] == counts["/hil/pose"]
     # Streamed live to Rerun as well (--rerun RRD): every decision and pose.
     store = RrdReader(tmp_path / "live.rrd").store()
     assert rows(store, "/world/controller/safe_inputs") == counts["/hil/decision"]

@@ -71,8 +71,8 @@ def test_one_row_per_pose_decision_layout_and_event(exported: Exported) -> None:
 
 def test_logged_values_match_the_bag(exported: Exported) -> None:
     with BagReader(exported.bag) as reader:
-        poses = [r for _, _, r in reader.records(["/voyager/measurement/pose"])]
-        refs = [r for _, _, r in reader.records(["/voyager/control/velocity/command"])]
+        poses = [r for _, _, r in reader.records(["/hil/pose"])]
+        refs = [r for _, _, r in reader.records(["/hil/velocity/command"])]
     pose_rows = [(p.t_ns, p.x_m, p.y_m) for p in poses if isinstance(p, PoseSample)]
     sway_rows = [(r.t_ns, r.sway_mps) for r in refs if isinstance(r, VelocityReference)]
     assert len(pose_rows) == len(poses)
