@@ -18,6 +18,7 @@ import numpy as np
 
 from hil.adapters.ros_listen import Heard, RosListener
 from hil.controllers.symbolic import NoWinningSetError
+from hil.core.pose_feeds import PoseFeed, pose_feed
 from hil.runs.feed_check import (
     CheckLine,
     FeedSeries,
@@ -89,6 +90,16 @@ def _position(listener: RosListener, scenario: Scenario,
     return PositionFinding((pose.x_m, pose.y_m, pose.yaw_rad), inside, cell, float(value))
 
 
+def _premise_line(feed: PoseFeed, scenario: Scenario) -> CheckLine:
+    """Say which pose feed's premises are in force and the estimation bound they give."""
+    budget = scenario.transient
+    return CheckLine("pose feed", "premise in force",
+                     f'pose_feed = "{feed.name}": {feed.premise_text()}; estimation bound '
+                     f"{1e3 * budget.estimation_position_m:.1f} mm, "
+                     f"{1e3 * budget.estimation_heading_rad:.1f} mrad",
+                     "the feed lines below hold it", True)
+
+
 def check_vessel(config: VesselConfig, seconds: float,
                  progress: Callable[[str], None]) -> CheckReport:
     """Listen for `seconds` of wall time and judge the feeds and the vessel's pose.
@@ -102,7 +113,8 @@ def check_vessel(config: VesselConfig, seconds: float,
         hil.scenarios.ScenarioError: The config's scenario cannot be read.
         hil.adapters.ros.RosBackendError: ROS 2 cannot start.
     """
-    scenario = load_scenario(config.scenario)
+    feed = pose_feed(config.pose_feed)
+    scenario = load_scenario(config.scenario).for_pose_feed(feed.name)
     ros = config.ros
     clock = "/clock (sim time)" if ros.use_sim_time else "wall time"
     controller: SymbolicController | None = None
@@ -133,7 +145,8 @@ def check_vessel(config: VesselConfig, seconds: float,
         assert imu is not None
         lines = [judge_publishers(pose.topic, listener.publishers(pose.topic),
                                   ros.best_effort_sensors, pose.qos_refusals),
-                 *judge_pose_feed(_series(pose), ros.pose_frame_id, ros.use_sim_time),
+                 _premise_line(feed, scenario),
+                 *judge_pose_feed(_series(pose), ros.pose_frame_id, ros.use_sim_time, feed),
                  judge_publishers(imu.topic, listener.publishers(imu.topic),
                                   ros.best_effort_sensors, imu.qos_refusals),
                  *judge_imu_feed(_series(imu), ros.use_sim_time)]
