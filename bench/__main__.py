@@ -19,6 +19,7 @@ BENCHMARKS = {
     "replay": "bench.replay",
     "rerun_export": "bench.rerun_export",
     "dask": "bench.dask",
+    "qtm_path": "bench.qtm_path",
 }
 
 

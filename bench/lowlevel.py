@@ -50,6 +50,7 @@ from numpy.typing import NDArray
 
 from hil.controllers.allocation_kernels import extended_matrix, force_limits
 from hil.controllers.low_level import AllocatorKind
+from hil.core.pose_feeds import DEFAULT_POSE_FEED, POSE_FEEDS, pose_feed
 from hil.core.transient import LATE_S, BudgetClass
 from hil.model.coefficients import VesselParams
 from hil.model.dynamics import hydro_force
@@ -62,7 +63,8 @@ from hil.sim.closed_loop import (
     simulate_closed_loop,
 )
 from hil.sim.reference_paths import input_grid
-from hil.sim.transient import CLASS_NAMES, derive_transient, toml_table
+from hil.sim.sensors import pose_sensor_for
+from hil.sim.transient import CLASS_NAMES, TransientDerivation, derive_transient, toml_table
 from hil.sim.transient_runs import DIGITS, TransientRecipe
 
 F = NDArray[np.float64]
@@ -235,6 +237,85 @@ def interpreted_seconds(span_s: float) -> float:
     return float(out.stdout.strip().splitlines()[-1])
 
 
+def transient_report(cfg: LowLevelConfig, feed: str) -> TransientDerivation:
+    """Derive and print the paper scenario's transient budget with `cfg`'s sensors (`feed`)."""
+    recipe_t = TransientRecipe()
+    derivation = derive_transient(load_scenario("paper"), recipe_t, cfg)
+    if feed != DEFAULT_POSE_FEED:
+        derivation = replace(derivation, budget=replace(
+            derivation.budget, source=f"{derivation.budget.source}; pose feed {feed}"))
+    budget = derivation.budget
+    measured = derivation.measured
+    periods = ", ".join(
+        f"{n} {name}" for n, name in zip(measured.periods, CLASS_NAMES, strict=True)
+    )
+    print(
+        "\ntransient: deviation from the exact arc of the command started at the true pose, "
+        f"per period class,\n  up to the end of each bin (pose feed {feed}; periods of tau to "
+        f"tau + {LATE_S:g} s)"
+    )
+    print(
+        f"  {periods} periods, {measured.simulated_s:.0f} s simulated, derived in "
+        f"{derivation.seconds:.1f} s (wall, one core)"
+    )
+    edges = [j * budget.bin_s for j in range(budget.n_bins + 1)]
+    bin_header = "".join(f"{f'{a:g}-{b:g}':>10}" for a, b in itertools.pairwise(edges))
+    print(f"  {'measured (s)':<22}{bin_header}")
+    for cls, cls_name in enumerate(CLASS_NAMES):
+        for label, row in (
+            ("position m", measured.position_m[cls]),
+            ("heading rad", measured.heading_rad[cls]),
+        ):
+            print(f"  {cls_name + ' ' + label:<22}" + "".join(f"{v:>10.4f}" for v in row))
+    for cls, cls_name in enumerate(CLASS_NAMES):
+        for axis, axis_name in enumerate(("surge m/s", "sway m/s", "yaw rate rad/s")):
+            cells = "".join(f"{v:>10.4f}" for v in measured.envelopes[cls, :, axis])
+            print(f"  {cls_name + ' ' + axis_name:<22}{cells}")
+    print(
+        f"  EKF error after {recipe_t.estimation_after_s:g} s: position "
+        f"{measured.estimation[0]:.4f} m, heading {measured.estimation[1]:.4f} rad"
+    )
+    ratios = derivation.ratios
+    print("  largest deviation per class against the budget (max over bins of measured/budget):")
+    for cls, cls_name in enumerate(CLASS_NAMES):
+        print(
+            f"    {cls_name:<7} position {ratios.position_m[cls]:.4f} m of "
+            f"{budget.position_m[cls, -1]:.4f} (ratio {ratios.position[cls]:.3f}), heading "
+            f"{ratios.heading_rad[cls]:.4f} rad of {budget.heading_rad[cls, -1]:.4f} "
+            f"(ratio {ratios.heading[cls]:.3f})"
+        )
+    fam = measured.family_periods
+    print(
+        f"  the systematic family ({fam[0]} hold, {fam[1]} change periods: every one-step "
+        f"ramp of 1-{recipe_t.ramp_steps} steps into every input, {recipe_t.ramp_holds} "
+        "holds after),\n  its worst deviation and the factor the budget keeps over it "
+        "(budget / measured, >= 1 required):"
+    )
+    print(f"  {'family (s)':<22}{bin_header}")
+    f_position, f_heading = derivation.family_factors()
+    for cls in (BudgetClass.HOLD, BudgetClass.CHANGE):
+        cls_name = CLASS_NAMES[cls]
+        for label, row in (
+            ("position m", measured.family_position_m[cls]),
+            ("position factor", f_position[cls]),
+            ("heading rad", measured.family_heading_rad[cls]),
+            ("heading factor", f_heading[cls]),
+        ):
+            print(f"  {cls_name + ' ' + label:<22}" + "".join(f"{v:>10.4f}" for v in row))
+    print("  hold periods by holds in a row since the last change (position m; settled by 2):")
+    streaks = measured.hold_streak_position_m
+    for h in range(streaks.shape[0]):
+        label = f"hold {h + 1}{'+' if h == streaks.shape[0] - 1 else ''}"
+        print(f"  {label:<22}" + "".join(f"{v:>10.4f}" for v in streaks[h]))
+    print(
+        f"\nscenario transient budget this measures (deviations x{recipe_t.safety_factor:g} + "
+        f"{recipe_t.position_margin_m:g} m / {recipe_t.heading_margin_rad:g} rad, the rest "
+        f"x{recipe_t.safety_factor:g}, rounded up to {DIGITS} decimals):"
+    )
+    print("\n".join(f"  {line}" for line in toml_table(budget).splitlines()))
+    return derivation
+
+
 def main(argv: list[str] | None = None) -> int:
     """Print tracking error, bounds and loop speed; return 0."""
     parser = argparse.ArgumentParser(prog="python -m bench lowlevel", description=__doc__)
@@ -243,9 +324,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--repeats", type=int, default=5, help="timing repeats (best of)")
     parser.add_argument("--baseline-seconds", type=float, default=4.0, help="interpreted span (s)")
     parser.add_argument("--json", action="store_true", help="also print a JSON summary")
+    parser.add_argument("--pose-feed", default=DEFAULT_POSE_FEED, choices=sorted(POSE_FEEDS),
+                        help="the pose feed the sensors simulate (hil.core.pose_feeds)")
+    parser.add_argument("--transient-only", action="store_true",
+                        help="derive the transient budget only (no tracking, no speed)")
     args = parser.parse_args(argv)
 
-    cfg = LowLevelConfig()
+    cfg = LowLevelConfig(pose_sensor=pose_sensor_for(pose_feed(args.pose_feed)))
+    if args.transient_only:
+        transient_report(cfg, args.pose_feed)
+        return 0
     period = cfg.command_period_s
     n_ref = max(1, round(args.seconds / period))
     refs = [random_walk_refs(n_ref, SEED0 + s, GRID) for s in range(args.seeds)]
@@ -325,77 +413,10 @@ def main(argv: list[str] | None = None) -> int:
     )
 
     # ---- transient budget (the scenario's [transient]) ----
-    recipe_t = TransientRecipe()
-    derivation = derive_transient(load_scenario("paper"), recipe_t, cfg)
-    budget = derivation.budget
-    measured = derivation.measured
-    periods = ", ".join(
-        f"{n} {name}" for n, name in zip(measured.periods, CLASS_NAMES, strict=True)
-    )
-    print(
-        "\ntransient: deviation from the exact arc of the command started at the true pose, "
-        "per period class,\n  up to the end of each bin (default config; periods of tau to "
-        f"tau + {LATE_S:g} s)"
-    )
-    print(
-        f"  {periods} periods, {measured.simulated_s:.0f} s simulated, derived in "
-        f"{derivation.seconds:.1f} s (wall, one core)"
-    )
-    edges = [j * budget.bin_s for j in range(budget.n_bins + 1)]
-    bin_header = "".join(f"{f'{a:g}-{b:g}':>10}" for a, b in itertools.pairwise(edges))
-    print(f"  {'measured (s)':<22}{bin_header}")
-    for cls, cls_name in enumerate(CLASS_NAMES):
-        for label, row in (
-            ("position m", measured.position_m[cls]),
-            ("heading rad", measured.heading_rad[cls]),
-        ):
-            print(f"  {cls_name + ' ' + label:<22}" + "".join(f"{v:>10.4f}" for v in row))
-    for cls, cls_name in enumerate(CLASS_NAMES):
-        for axis, axis_name in enumerate(("surge m/s", "sway m/s", "yaw rate rad/s")):
-            cells = "".join(f"{v:>10.4f}" for v in measured.envelopes[cls, :, axis])
-            print(f"  {cls_name + ' ' + axis_name:<22}{cells}")
-    print(
-        f"  EKF error after {recipe_t.estimation_after_s:g} s: position "
-        f"{measured.estimation[0]:.4f} m, heading {measured.estimation[1]:.4f} rad"
-    )
-    ratios = derivation.ratios
-    print("  largest deviation per class against the budget (max over bins of measured/budget):")
-    for cls, cls_name in enumerate(CLASS_NAMES):
-        print(
-            f"    {cls_name:<7} position {ratios.position_m[cls]:.4f} m of "
-            f"{budget.position_m[cls, -1]:.4f} (ratio {ratios.position[cls]:.3f}), heading "
-            f"{ratios.heading_rad[cls]:.4f} rad of {budget.heading_rad[cls, -1]:.4f} "
-            f"(ratio {ratios.heading[cls]:.3f})"
-        )
-    fam = measured.family_periods
-    print(
-        f"  the systematic family ({fam[0]} hold, {fam[1]} change periods: every one-step "
-        f"ramp of 1-{recipe_t.ramp_steps} steps into every input, {recipe_t.ramp_holds} "
-        "holds after),\n  its worst deviation and the factor the budget keeps over it "
-        "(budget / measured, >= 1 required):"
-    )
-    print(f"  {'family (s)':<22}{bin_header}")
+    derivation = transient_report(cfg, args.pose_feed)
+    measured, budget, ratios = derivation.measured, derivation.budget, derivation.ratios
     f_position, f_heading = derivation.family_factors()
-    for cls in (BudgetClass.HOLD, BudgetClass.CHANGE):
-        cls_name = CLASS_NAMES[cls]
-        for label, row in (
-            ("position m", measured.family_position_m[cls]),
-            ("position factor", f_position[cls]),
-            ("heading rad", measured.family_heading_rad[cls]),
-            ("heading factor", f_heading[cls]),
-        ):
-            print(f"  {cls_name + ' ' + label:<22}" + "".join(f"{v:>10.4f}" for v in row))
-    print("  hold periods by holds in a row since the last change (position m; settled by 2):")
     streaks = measured.hold_streak_position_m
-    for h in range(streaks.shape[0]):
-        label = f"hold {h + 1}{'+' if h == streaks.shape[0] - 1 else ''}"
-        print(f"  {label:<22}" + "".join(f"{v:>10.4f}" for v in streaks[h]))
-    print(
-        f"\nscenario transient budget this measures (deviations x{recipe_t.safety_factor:g} + "
-        f"{recipe_t.position_margin_m:g} m / {recipe_t.heading_margin_rad:g} rad, the rest "
-        f"x{recipe_t.safety_factor:g}, rounded up to {DIGITS} decimals):"
-    )
-    print("\n".join(f"  {line}" for line in toml_table(budget).splitlines()))
 
     # ---- speed ----
     long_refs = random_walk_refs(round(180.0 / period), 7, GRID)

@@ -7,22 +7,25 @@ turn those series into figures (:func:`feed_figures`) and lines of PASS or FAIL
 :func:`judge_position`): pure functions over arrays, tested without DDS.
 
 The premises: the EKF's estimation bound (the scenario's ``estimation_position_m``) was
-measured on a 100-Hz pose feed stamped at capture and delivered about 10 ms later
-(the simulated Qualisys, :class:`hil.sim.sensors.PoseSensorConfig`). A 10-Hz feed, or one
-stamped on receipt (latency near zero: the stamp hides the delay the EKF compensates),
-is another premise, under which the bound is not known to hold.
+measured on the pose feed in force (the vessel config's ``pose_feed``,
+:mod:`hil.core.pose_feeds`): by default 100 Hz stamped at capture and delivered about
+10 ms later; ``ros-10hz-receive-stamped`` is 10 Hz stamped on receipt (latency near zero:
+the stamp hides the delay), with its own, wider bound. A feed slower than the premise
+in force fails, naming the key to change.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from hil.adapters.feed_tape import Heard
 from hil.core.arrays import BoolArray, IntArray
 from hil.core.clock import NS_PER_S
+from hil.core.pose_feeds import DEFAULT_POSE_FEED, POSE_FEEDS, PoseFeed
+from hil.runs.feed_premise import rate_refusal
 
 __all__ = [
     "CheckLine",
@@ -35,6 +38,7 @@ __all__ = [
     "judge_pose_feed",
     "judge_position",
     "judge_publishers",
+    "pose_premises",
     "series_of",
 ]
 
@@ -65,6 +69,13 @@ class FeedPremises:
 
 POSE_PREMISES = FeedPremises()
 """The pose feed the EKF bound was measured with: 100 Hz, stamped ~10 ms before arrival."""
+
+
+def pose_premises(feed: PoseFeed) -> FeedPremises:
+    """Return what a pose feed must look like for `feed`'s estimation bound to hold."""
+    return replace(POSE_PREMISES, rate_hz=feed.rate_hz, rate_tolerance=feed.rate_tolerance,
+                   latency_min_ms=feed.latency_min_ms, latency_max_ms=feed.latency_max_ms,
+                   jitter_max_ms=max(POSE_PREMISES.jitter_max_ms, 250.0 / feed.rate_hz))
 IMU_PREMISES = FeedPremises(rate_hz=100.0, rate_tolerance=0.5, latency_min_ms=0.0,
                             latency_max_ms=50.0, jitter_max_ms=50.0)
 """The IMU feed: at least 50 Hz, fresh; its stamps are not judged for capture."""
@@ -168,17 +179,19 @@ def feed_figures(series: FeedSeries) -> FeedFigures:
 
 
 def judge_pose_feed(series: FeedSeries, expected_frame: str, sim_time: bool,
-                    premises: FeedPremises = POSE_PREMISES) -> list[CheckLine]:
+                    feed: PoseFeed = POSE_FEEDS[DEFAULT_POSE_FEED]) -> list[CheckLine]:
     """Judge the pose feed: rate, jitter, latency (capture stamps), clock, frame, NaN.
 
     Args:
         series: What the pose topic delivered.
         expected_frame: The config's ``[ros] pose_frame_id``.
         sim_time: Whether hil follows /clock (``[ros] use_sim_time``).
-        premises: What the estimation bound assumes.
+        feed: The premise in force (the vessel config's ``pose_feed``).
     """
     figures = feed_figures(series)
-    lines = _judge_timing(series.topic, figures, sim_time, premises, capture=True)
+    lines = _judge_timing(series.topic, figures, sim_time, pose_premises(feed),
+                          capture=feed.stamped_at_capture)
+    lines = [_pose_fix(line, figures, feed) for line in lines]
     if figures.count:
         seen = ", ".join(repr(f) for f in figures.frame_ids)
         wrong = [f for f in figures.frame_ids if f and f != expected_frame]
@@ -186,6 +199,18 @@ def judge_pose_feed(series: FeedSeries, expected_frame: str, sim_time: bool,
                                f'set [ros] pose_frame_id = "{wrong[0]}" and check '
                                "[ros.transform]" if wrong else ""))
     return lines
+
+
+def _pose_fix(line: CheckLine, figures: FeedFigures, feed: PoseFeed) -> CheckLine:
+    """Name the vessel config's ``pose_feed`` in a failed rate or stamping line."""
+    if line.ok:
+        return line
+    if line.what == "rate" and figures.rate_hz < feed.rate_hz:
+        return replace(line, fix=rate_refusal(figures.rate_hz, feed, "the feed"))
+    if line.what == "latency" and figures.latency_ms < feed.latency_min_ms:
+        return replace(line, fix=f"{line.fix}, or set pose_feed = \"ros-10hz-receive-stamped\" "
+                       "(a premise for poses stamped on receipt)")
+    return line
 
 
 def judge_imu_feed(series: FeedSeries, sim_time: bool,

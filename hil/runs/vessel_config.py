@@ -13,6 +13,8 @@ from hil.adapters.qtm import QtmConfig, qtm_config_from_table
 from hil.adapters.ros import RosConfig
 from hil.core.config import ConfigError, from_table, load_toml
 from hil.core.config_doc import config_toml
+from hil.core.pose_feeds import DEFAULT_POSE_FEED, POSE_FEEDS, pose_feed
+from hil.runs.feed_premise import qtm_rate_refusal
 from hil.runtime.settings import LoopConfig
 
 __all__ = ["VesselConfig", "config_text"]
@@ -30,9 +32,14 @@ class VesselConfig:
         qtm: With a ``[qtm]`` table, the pose comes straight from Qualisys Track Manager
             (:mod:`hil.adapters.qtm`; IMU and thrusters stay on ROS 2); None: the pose
             topic of ``[ros.topics]``.
+        pose_feed: The pose feed whose premises are in force ("qtm-100hz": 100 Hz stamped
+            at capture; "ros-10hz-receive-stamped": the mocap4ros2_qualisys driver, 10 Hz
+            stamped on receipt, with its wider estimation bound); hil refuses a feed
+            slower than it.
     """
 
     scenario: str = "paper"
+    pose_feed: str = DEFAULT_POSE_FEED
     runs_dir: str = "runs"
     ros: RosConfig = field(default_factory=RosConfig)
     loop: LoopConfig = field(default_factory=LoopConfig)
@@ -54,11 +61,18 @@ class VesselConfig:
         table = dict(load_toml(path))
         qtm = table.pop("qtm", None)
         config = from_table(VesselConfig, table)
+        if config.pose_feed not in POSE_FEEDS:
+            raise ConfigError(f"key 'pose_feed' = {config.pose_feed!r}: one of "
+                              f"{', '.join(sorted(POSE_FEEDS))}")
         if qtm is None:
             return config
         if not isinstance(qtm, dict):
             raise ConfigError(f"qtm: must be a table ([qtm]), got {qtm!r}")
-        return replace(config, qtm=qtm_config_from_table(qtm, config.ros.transform))
+        qtm_config = qtm_config_from_table(qtm, config.ros.transform)
+        refusal = qtm_rate_refusal(qtm_config, pose_feed(config.pose_feed))
+        if refusal:
+            raise ConfigError(refusal)
+        return replace(config, qtm=qtm_config)
 
 
 def config_text(config: VesselConfig) -> str:

@@ -29,6 +29,10 @@ from hil.adapters.ros import RosBackendError, RosWorld
 from hil.bag.messages import DEFAULT_LAB_FRAME, LabFrame
 from hil.bag.recorder import Recorder
 from hil.bag.run_info import RunInfo
+from hil.core.config import ConfigError
+from hil.core.pose_feeds import pose_feed
+from hil.core.records import EventLevel
+from hil.runs.feed_premise import measured_rate_hz, rate_refusal
 from hil.runs.feed_watch import FeedWatch
 from hil.runs.live_diagnostics import FeedView
 from hil.runs.live_telemetry import TelemetryLog
@@ -37,6 +41,7 @@ from hil.runs.stack_assembly import build_runtime, scenario_hash, synthesizer_fo
 from hil.runs.summary import RunSummary, summarize_run
 from hil.runs.vessel_config import VesselConfig
 from hil.runtime.assembly import layout_from_scenario, warm_up_kernels
+from hil.runtime.events import EventCode
 from hil.runtime.loop import Runtime, World
 from hil.runtime.mode import Mode
 from hil.runtime.protocols import RunLog
@@ -49,6 +54,8 @@ Progress = Callable[[str], None]
 
 # Seconds between status lines while the loop runs, and between reminders while waiting.
 STATUS_PERIOD_S = 5.0
+# Seconds of the pose feed measured after its first pose, against the premise's rate.
+RATE_WINDOW_S = 1.0
 
 
 def _quiet(_line: str) -> None:
@@ -101,11 +108,13 @@ class _PoseFeed:
     where: str
     wait_first: Callable[[float], bool]
     waiting: Callable[[], str]
+    count: Callable[[], int]
+    """Poses accepted so far (the rate is measured on it)."""
 
 
 def _ros_pose(ros: RosWorld, topic: str, feeds: FeedWatch) -> _PoseFeed:
     return _PoseFeed(f"on {topic} (ROS domain {ros.domain_id})", ros.pose_source.wait_first,
-                     lambda: feeds.waiting(topic))
+                     lambda: feeds.waiting(topic), lambda: ros.pose_health().accepted)
 
 
 def _qtm_pose(source: QtmPoseSource) -> _PoseFeed:
@@ -117,7 +126,7 @@ def _qtm_pose(source: QtmPoseSource) -> _PoseFeed:
                 f"{c.lost} with body {cfg.body!r} lost: is QTM streaming, with that body?")
 
     return _PoseFeed(f"from QTM at {cfg.host}:{cfg.port}, body {cfg.body!r}",
-                     source.wait_first, waiting)
+                     source.wait_first, waiting, lambda: source.counters.poses)
 
 
 def _wait_for_pose(pose: _PoseFeed, feeds: FeedWatch, progress: Progress) -> str | None:
@@ -182,6 +191,20 @@ def _pose_feed(closing: ExitStack, config: VesselConfig, ros: RosWorld, log: Run
                                   config.ros.use_sim_time)
 
 
+def _slower_than_premise(pose: _PoseFeed, config: VesselConfig, log: RunLog,
+                         now_ns: Callable[[], int]) -> str:
+    """Measure the pose feed's rate over :data:`RATE_WINDOW_S`; return why it is refused, or "".
+
+    A refusal is logged (``pose_feed_premise``, ERROR) before the run stops.
+    """
+    feed = pose_feed(config.pose_feed)
+    rate = measured_rate_hz(pose.count, RATE_WINDOW_S)
+    refusal = rate_refusal(rate, feed, f"the pose feed {pose.where}")
+    if refusal:
+        log.event(max(0, now_ns()), EventLevel.ERROR, EventCode.POSE_FEED_PREMISE.value, refusal)
+    return refusal
+
+
 def run_on_ros(config: VesselConfig, out_dir: Path | None = None,
                progress: Progress = _quiet, live: LiveView | None = None) -> RunSummary:
     """Run the stack against the vessel over ROS 2 until docked, stopped or timed out.
@@ -199,7 +222,7 @@ def run_on_ros(config: VesselConfig, out_dir: Path | None = None,
         The run's summary, judged on the state estimates (there is no ground truth).
     """
     wall_start = time.perf_counter()
-    scenario = load_scenario(config.scenario)
+    scenario = load_scenario(config.scenario).for_pose_feed(config.pose_feed)
     progress(f"building the abstraction for the {scenario.name!r} scenario...")
     synthesizer = synthesizer_for(scenario, threads=config.loop.synthesis_threads)
     if out_dir is None:
@@ -236,6 +259,8 @@ def run_on_ros(config: VesselConfig, out_dir: Path | None = None,
             stopped = early[0] if early else _wait_for_pose(pose, feeds, progress)
             if stopped is not None:
                 runtime.request_stop(f"{stopped} while waiting for pose")
+            elif refusal := _slower_than_premise(pose, config, log, ros.clock.now_ns):
+                raise ConfigError(refusal)
             else:
                 progress(f"running: recording to {out_dir}")
             with stop_on_signals(runtime.request_stop), \

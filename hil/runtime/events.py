@@ -75,6 +75,9 @@ class EventCode(enum.Enum):
     with how long the input was held and by how much too long): the loop stalled, and the
     one-step budget, bounded over periods up to tau + late, does not cover that interval.
     The decision is taken at once, as a first decision (from the estimated velocity)."""
+    POSE_FEED_PREMISE = "pose_feed_premise"
+    """The pose feed is slower than the premise in force (vessel config ``pose_feed``):
+    ``hil vessel`` refuses to start on it (ERROR, the measured rate and the premise)."""
     ESTIMATE_INCONSISTENT = "estimate_inconsistent"
     """The EKF's innovations broke its noise model over a window of poses (ERROR, with
     the mean NIS, the share of gated poses and the RMS position innovation against

@@ -21,6 +21,7 @@ import numpy as np
 
 from hil.core.config import ConfigError, check_keys, from_table, number, numbers, table
 from hil.core.motion import ObstacleMotion
+from hil.core.pose_feeds import DEFAULT_POSE_FEED, POSE_FEEDS
 from hil.core.shapes import Polygon, Rect, Shape
 from hil.core.transient import (
     LATE_S,
@@ -56,6 +57,7 @@ _TOP_KEYS = {
     "inputs",
     "timing",
     "transient",
+    "pose_feeds",
     "hull",
     "abstraction",
     "obstacle_motion",
@@ -303,8 +305,28 @@ def _transient(data: dict[str, Any], tau_s: float) -> TransientBudget:
     """
     if "transient" not in data:
         return TransientBudget.zero(tau_s)
-    raw = table(data, "transient")
-    where = "transient."
+    return _budget(table(data, "transient"), "transient", tau_s)
+
+
+def _pose_feeds(data: dict[str, Any], tau_s: float) -> tuple[tuple[str, TransientBudget], ...]:
+    """Read ``[pose_feeds.NAME]``: a ``[transient]`` table per other named pose feed."""
+    feeds = table(data, "pose_feeds", required=False)
+    out = []
+    for name, raw in feeds.items():
+        if name not in POSE_FEEDS or name == DEFAULT_POSE_FEED:
+            others = ", ".join(sorted(set(POSE_FEEDS) - {DEFAULT_POSE_FEED}))
+            raise ScenarioError(
+                f"table 'pose_feeds.{name}': not a pose feed with premises of its own "
+                f"(known: {others}; {DEFAULT_POSE_FEED}'s are [transient])")
+        if not isinstance(raw, dict):
+            raise ScenarioError(f"key 'pose_feeds.{name}' must be a table, got {raw!r}")
+        out.append((name, _budget(raw, f"pose_feeds.{name}", tau_s)))
+    return tuple(out)
+
+
+def _budget(raw: dict[str, Any], name: str, tau_s: float) -> TransientBudget:
+    """Read one budget table (``[transient]`` or ``[pose_feeds.NAME]``), `name` its key."""
+    where = f"{name}."
     _keys(raw, _TRANSIENT_KEYS, where)
     bin_s = number(raw, "bin_s", where)
     if not (bin_s > 0.0 and _divides(tau_s, bin_s)):
@@ -347,7 +369,7 @@ def _transient(data: dict[str, Any], tau_s: float) -> TransientBudget:
             **estimation,
         )
     except TransientBudgetError as err:
-        raise ScenarioError(f"table 'transient': {err}") from err
+        raise ScenarioError(f"table {name!r}: {err}") from err
     check_transient(budget, tau_s)
     return budget
 
@@ -480,6 +502,7 @@ def _parse(data: dict[str, Any], default_name: str) -> Scenario:
         target=target,
         tracking=tracking,
         simulation=_simulation(data, obstacles),
+        pose_feeds=_pose_feeds(data, tau),
     )
     check_sets(scenario)
     check_geometry(scenario)

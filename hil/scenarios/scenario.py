@@ -18,6 +18,7 @@ import numpy as np
 
 from hil.core.arrays import FloatArray
 from hil.core.motion import ObstacleMotion
+from hil.core.pose_feeds import DEFAULT_POSE_FEED
 from hil.core.shapes import Polygon, Rect, Shape, convex_distance_m, shapes_overlap
 from hil.core.transient import LATE_S, TransientBudget, horizon_bins
 from hil.scenarios.errors import ScenarioError
@@ -217,6 +218,10 @@ class Scenario:
         simulation: What the obstacles do in simulation (``[[simulated_motion]]``,
             ``[sim]``); left out of ``repr`` so that a scenario without it keeps its
             digest, and added to :meth:`digest` when set.
+        pose_feeds: The budget measured for each other pose feed
+            (``[pose_feeds.NAME]``, :mod:`hil.core.pose_feeds`), by name; `transient`
+            is the one for :data:`~hil.core.pose_feeds.DEFAULT_POSE_FEED`. Left out of
+            ``repr``: the digest is of the budget in force (:meth:`for_pose_feed`).
     """
 
     name: str
@@ -235,6 +240,26 @@ class Scenario:
     target: Target
     tracking: ObstacleTracking = ObstacleTracking()
     simulation: SimulatedWorld = field(default=SimulatedWorld(), repr=False)
+    pose_feeds: tuple[tuple[str, TransientBudget], ...] = field(default=(), repr=False)
+
+    def for_pose_feed(self, name: str) -> Scenario:
+        """Return this scenario with the budget measured for pose feed `name` in force.
+
+        Raises:
+            ScenarioError: The scenario ships no budget for that feed (the message names
+                the table to add and the command that measures it).
+        """
+        if name == DEFAULT_POSE_FEED:
+            return self
+        budget = dict(self.pose_feeds).get(name)
+        if budget is None:
+            shipped = ", ".join([DEFAULT_POSE_FEED, *(n for n, _ in self.pose_feeds)])
+            raise ScenarioError(
+                f"scenario {self.name!r} has no premises for pose feed {name!r} (it has: "
+                f"{shipped}): add a [pose_feeds.{name}] table (measure it with `python -m "
+                f"bench lowlevel --transient-only --pose-feed {name}`) or set pose_feed to "
+                "one it has")
+        return replace(self, transient=budget)
 
     def digest(self) -> str:
         """Return a short hash of everything in the scenario (for logs and caches).

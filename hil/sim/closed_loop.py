@@ -87,7 +87,7 @@ class LowLevelConfig:
             ``dt_s`` runs them every physics step. Must be a multiple of ``dt_s``.
         command_period_s: How long each reference row is held (s).
         observer: EKF settings; None feeds the PID the true velocity (no sensors).
-        pose_sensor: Motion-capture model (its rate must be 1 / dt_s).
+        pose_sensor: Motion-capture model (its rate must divide 1 / dt_s).
         imu: IMU model (its rate must be 1 / dt_s).
         seed: Seed of the sensor noise and of the environmental load's noise.
     """
@@ -119,11 +119,29 @@ class LowLevelConfig:
                     f"{name} must be a whole multiple of dt_s={self.dt_s!r}, "
                     f"got {getattr(self, name)!r}"
                 )
-        for name, rate in (("pose_sensor", self.pose_sensor.rate_hz), ("imu", self.imu.rate_hz)):
-            if abs(rate * self.dt_s - 1.0) > 1e-9:
-                raise ClosedLoopConfigError(
-                    f"{name}.rate_hz must equal 1 / dt_s = {1.0 / self.dt_s!r}, got {rate!r}"
-                )
+        if abs(self.imu.rate_hz * self.dt_s - 1.0) > 1e-9:
+            raise ClosedLoopConfigError(
+                f"imu.rate_hz must equal 1 / dt_s = {1.0 / self.dt_s!r}, got {self.imu.rate_hz!r}"
+            )
+        every = 1.0 / (self.pose_sensor.rate_hz * self.dt_s)
+        if abs(every - round(every)) > 1e-6 or round(every) < 1:
+            raise ClosedLoopConfigError(
+                f"pose_sensor.rate_hz must divide 1 / dt_s = {1.0 / self.dt_s!r}, "
+                f"got {self.pose_sensor.rate_hz!r}"
+            )
+
+    @property
+    def pose_every(self) -> int:
+        """Physics steps per pose sample."""
+        return round(1.0 / (self.pose_sensor.rate_hz * self.dt_s))
+
+    def pose_draws(self) -> PoseSensorConfig:
+        """Return the pose sensor drawn per physics step: its noise, outages and delay.
+
+        A slower feed samples every :attr:`pose_every`-th step of these draws; its delay
+        is counted in physics steps, not in its own periods.
+        """
+        return replace(self.pose_sensor, rate_hz=1.0 / self.dt_s)
 
     @property
     def control_every(self) -> int:
@@ -202,6 +220,8 @@ def closed_loop_kernel(
     pose_noise: FloatArray,
     pose_available: BoolArray,
     pose_ring: FloatArray,
+    pose_every: int,
+    pose_on_receipt: bool,
     imu_noise: FloatArray,
     imu_bias: FloatArray,
     out: FloatArray,
@@ -224,7 +244,9 @@ def closed_loop_kernel(
         ekf: Initialized EKF arrays (updated in place).
         pose_noise: Pose noise per step, (N, 3).
         pose_available: Pose availability per step, (N,).
-        pose_ring: Pose delay line, (delay + 1, 4), zeros.
+        pose_ring: Pose delay line, (delay + 1, 4), zeros; delay in physics steps.
+        pose_every: Physics steps per pose sample (a pose is measured when k is a multiple).
+        pose_on_receipt: Stamp each pose with its delivery step (else its measurement step).
         imu_noise: IMU white noise per step, (N, 3).
         imu_bias: IMU bias per step, (N, 3).
         out: Output buffer, (N, N_OUT), N = N_ref * steps_per_ref.
@@ -249,9 +271,11 @@ def closed_loop_kernel(
             nu_dot = acceleration(m_inv, coef, nu, tau + b_env[max(k - 1, 0)])
             imu_reading(nu, nu_dot, imu_noise[k], imu_bias[k], imu_buf)
             obs_imu(ekf, k * dt_ns, imu_buf[0], imu_buf[1], imu_buf[2])
-            k_meas = pose_sensor_step(pose_ring, k, eta, pose_noise[k], pose_available[k], pose_buf)
+            sampled = pose_available[k] and k % pose_every == 0
+            k_meas = pose_sensor_step(pose_ring, k, eta, pose_noise[k], sampled, pose_buf)
             if k_meas >= 0:
-                obs_pose(ekf, k_meas * dt_ns, pose_buf[0], pose_buf[1], pose_buf[2])
+                k_stamp = k if pose_on_receipt else k_meas
+                obs_pose(ekf, k_stamp * dt_ns, pose_buf[0], pose_buf[1], pose_buf[2])
             nu_hat = ekf.x[3:6].copy()
             eta_hat = ekf.x[0:3].copy()
         else:
@@ -365,7 +389,7 @@ def simulate_closed_loop(
     # Separate, reproducible streams for the two sensors (not drawn without observer).
     pose_seed, imu_seed = np.random.SeedSequence(cfg.seed).generate_state(2)
     pose_n = n if cfg.observer is not None else 0
-    pose = pose_noise_series(cfg.pose_sensor, pose_n, int(pose_seed))
+    pose = pose_noise_series(cfg.pose_draws(), pose_n, int(pose_seed))
     imu = imu_noise_series(cfg.imu, pose_n, int(imu_seed))
     out = np.empty((n, N_OUT))
     closed_loop_kernel(
@@ -373,7 +397,8 @@ def simulate_closed_loop(
         cfg.steps_per_command, initial_plant(low_level, e0, v0), low_level.initial_state(),
         np.ascontiguousarray(refs_arr), b_env, cfg.observer is not None, ekf,
         np.ascontiguousarray(pose.noise), np.ascontiguousarray(pose.available),
-        np.zeros((pose.delay_steps + 1, 4)), np.ascontiguousarray(imu.noise),
+        np.zeros((pose.delay_steps + 1, 4)), cfg.pose_every, cfg.pose_sensor.stamped_on_receipt,
+        np.ascontiguousarray(imu.noise),
         np.ascontiguousarray(imu.bias), out,
     )  # fmt: skip
     return unpack(out)

@@ -30,7 +30,7 @@ Notes:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import NamedTuple
 
 import numpy as np
@@ -38,6 +38,7 @@ import numpy as np
 from hil.core.arrays import BoolArray, FloatArray
 from hil.core.geometry import wrap_angle
 from hil.core.jit import njit
+from hil.core.pose_feeds import PoseFeed
 from hil.core.samples import Frame, ImuSample, PoseSample
 from hil.model.errors import SimError, StateShapeError
 
@@ -52,6 +53,7 @@ __all__ = [
     "imu_noise_series",
     "imu_reading",
     "pose_noise_series",
+    "pose_sensor_for",
     "pose_sensor_step",
     "specific_force",
 ]
@@ -91,6 +93,9 @@ class PoseSensorConfig:
         dropout_duration_s: Length of each random outage (s), >= 0, rounded to periods.
         scheduled_dropouts_s: Extra outages as (start_s, duration_s) after the
             first sample; samples measured in [start, start + duration) are lost.
+        stamped_on_receipt: Stamp each pose with its delivery time instead of its
+            measurement time (a driver that stamps on receipt, as mocap4ros2_qualisys
+            does): the stamp is then ``latency_s`` late, a delay the EKF cannot see.
     """
 
     rate_hz: float = 100.0
@@ -101,6 +106,7 @@ class PoseSensorConfig:
     dropout_rate_hz: float = 0.0
     dropout_duration_s: float = 1.0
     scheduled_dropouts_s: tuple[tuple[float, float], ...] = ()
+    stamped_on_receipt: bool = False
 
     def __post_init__(self) -> None:
         _check("rate_hz", self.rate_hz, positive=True)
@@ -145,6 +151,17 @@ class PoseSensorConfig:
         p = self.dropout_rate_hz / self.rate_hz
         n = self.dropout_steps
         return p * n / (1.0 - p + p * n)
+
+
+def pose_sensor_for(feed: PoseFeed, base: PoseSensorConfig | None = None) -> PoseSensorConfig:
+    """Return the simulated sensor that gives `feed`: its rate, delay and stamping.
+
+    Args:
+        feed: The named pose feed (:mod:`hil.core.pose_feeds`).
+        base: Noise and outages to keep (default: :class:`PoseSensorConfig`'s).
+    """
+    return replace(PoseSensorConfig() if base is None else base, rate_hz=feed.rate_hz,
+                   latency_s=feed.delay_s, stamped_on_receipt=not feed.stamped_at_capture)
 
 
 @dataclass(frozen=True, slots=True)
@@ -415,7 +432,8 @@ class SimulatedPoseSensor:
 
         Returns:
             The pose measured delay_steps periods ago, stamped with its own
-            measurement time, or None (start-up or dropout).
+            measurement time (with ``stamped_on_receipt``: `t_ns`), or None (start-up
+            or dropout).
 
         Raises:
             StateShapeError: eta is not of shape (3,).
@@ -432,7 +450,8 @@ class SimulatedPoseSensor:
         self._k += 1
         if k_meas < 0:
             return None
-        t_meas = int(self._t_ring[k_meas % self._ring.shape[0]])
+        t_meas = int(t_ns) if self._config.stamped_on_receipt \
+            else int(self._t_ring[k_meas % self._ring.shape[0]])
         return PoseSample(
             t_meas, float(self._out[0]), float(self._out[1]), float(self._out[2]), Frame.ARENA
         )

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from hil.core.pose_feeds import pose_feed
 from hil.runs.feed_check import (
     CheckLine,
     FeedSeries,
@@ -61,7 +62,8 @@ def test_the_premise_feed_passes_every_line() -> None:
 def test_ten_hertz_stamped_on_receipt_is_another_premise() -> None:
     lines = _by_what(judge_pose_feed(_series(10.0, 0.2), "world_ned", sim_time=False))
     assert not lines["rate"].ok
-    assert "publish at 100 Hz" in lines["rate"].fix
+    assert "slower than the premise in force (pose_feed = \"qtm-100hz\"" in lines["rate"].fix
+    assert 'set pose_feed = "ros-10hz-receive-stamped"' in lines["rate"].fix
     assert not lines["latency"].ok
     assert "stamped on receipt?" in lines["latency"].value
     assert lines["latency"].text().startswith("FAIL")
@@ -113,3 +115,18 @@ def test_position_lines() -> None:
     assert [line.ok for line in lost] == [False, False, False]
     (none,) = judge_position(PositionFinding(None, False, -1, math.inf), "coarse")
     assert not none.ok
+
+
+def test_the_ten_hertz_premise_passes_a_ten_hertz_receipt_stamped_feed() -> None:
+    feed = pose_feed("ros-10hz-receive-stamped")
+    lines = _by_what(judge_pose_feed(_series(10.0, 0.2), "world_ned", False, feed))
+    assert all(line.ok for line in lines.values()), [line.text() for line in lines.values()]
+    assert "premise: 9-11 Hz" in lines["rate"].text()
+
+
+def test_a_feed_slower_than_the_ten_hertz_premise_fails_naming_no_faster_premise() -> None:
+    feed = pose_feed("ros-10hz-receive-stamped")
+    rate = _by_what(judge_pose_feed(_series(5.0, 0.2), "world_ned", False, feed))["rate"]
+    assert not rate.ok
+    assert "delivers 5.0 Hz, slower than the premise in force" in rate.fix
+    assert "set pose_feed" not in rate.fix  # no premise covers a 5-Hz feed

@@ -23,9 +23,12 @@ from hil.adapters.sim import SimWorld
 from hil.core.clock import NS_PER_S
 from hil.core.geometry import wrap_angle
 from hil.core.samples import Frame, PoseSample
-from hil.runs.sim_run import SimRunSpec, sim_config, summarize
+from hil.runs.campaign import StartRegion, draw_starts, first_decision_s
+from hil.runs.guarantee import judge_outcome, judged_run
+from hil.runs.sim_run import RecordingSolver, SimOutcome, SimRunSpec, sim_config, summarize
 from hil.runs.stack_assembly import build_runtime, synthesizer_for
 from hil.runs.summary import RunSummary
+from hil.runtime.assembly import LayoutSolver, layout_from_scenario
 from hil.runtime.loop import World
 from hil.runtime.resynthesis import ResynthesisMode
 from hil.runtime.settings import LoopConfig
@@ -98,10 +101,19 @@ def pose_errors(poses: list[PoseSample], truth: np.ndarray) -> tuple[np.ndarray,
     return np.hypot(got[:, 0] - x, got[:, 1] - y), yaw
 
 
-def dock_over_qtm(faults: Faults) -> tuple[RunSummary, MemoryLog, SimWorld, list[str]]:
+def dock_over_qtm(faults: Faults, spec: SimRunSpec | None = None
+                  ) -> tuple[RunSummary, MemoryLog, SimWorld, list[str]]:
     """Run the coarse scenario with its pose from the stepped QTM server; return
     (summary, log, world, the feed's event codes)."""
-    spec = SimRunSpec(scenario="coarse", loop=LoopConfig(max_duration_s=80.0))
+    outcome, log, codes = qtm_outcome(faults, spec)
+    return outcome.summary, log, outcome.sim, codes
+
+
+def qtm_outcome(faults: Faults, spec: SimRunSpec | None = None
+                ) -> tuple[SimOutcome, MemoryLog, list[str]]:
+    """Run `spec` (default: coarse from its default start) with its pose from the stepped
+    QTM server; return the outcome a judge of the true state needs, the log, the codes."""
+    spec = spec or SimRunSpec(scenario="coarse", loop=LoopConfig(max_duration_s=80.0))
     scenario = load_scenario(spec.scenario)
     synthesizer = synthesizer_for(scenario, spec.cache_dir)
     sim = SimWorld(sim_config(spec, scenario), max_duration_s=spec.loop.max_duration_s + 10.0)
@@ -111,6 +123,7 @@ def dock_over_qtm(faults: Faults) -> tuple[RunSummary, MemoryLog, SimWorld, list
     clock = LockstepClock(sim, server)
     clocks.append(clock)
     log = MemoryLog()
+    solver = RecordingSolver(LayoutSolver(scenario, synthesizer))
     with server:
         config = QtmConfig("127.0.0.1", "2", port=server.port, transform=TRANSFORM)
         with QtmPoseSource(config, clock, on_event=lambda e: log.event(
@@ -119,13 +132,45 @@ def dock_over_qtm(faults: Faults) -> tuple[RunSummary, MemoryLog, SimWorld, list
             assert source.wait_first(5.0)  # the ready gate: QTM streams the body
             world = World(clock, source, sim.imu, sim.obstacles, sim.thrusters)
             runtime = build_runtime(scenario, world, log, spec.loop, synthesizer,
-                                    ResynthesisMode.INLINE)
+                                    ResynthesisMode.INLINE, solver=solver)
             wall = time.perf_counter()
             stats = runtime.run()
             wall = time.perf_counter() - wall
     summary = summarize(spec, scenario, sim, stats, wall)
     codes = [code for _, _, code, _ in log.events if code.startswith("qtm_")]
-    return summary, log, sim, codes
+    return SimOutcome(summary, scenario, sim, stats, solver.controllers), log, codes
+
+
+def test_five_starts_dock_over_qtm_as_over_the_sim_backend() -> None:
+    """The same five winning starts, docked with the pose from QTM over TCP and with the
+    simulated motion capture: every run docks, 0 violations on the true state in both."""
+    scenario = load_scenario("coarse")
+    solver = LayoutSolver(scenario, synthesizer_for(scenario))
+    controller = solver(layout_from_scenario(scenario)).controller
+    starts, _ = draw_starts(controller, 5, seed=24, region=StartRegion.of(scenario),
+                            settle_s=first_decision_s(LoopConfig()), scenario=scenario)
+    rows = []
+    for i, start in enumerate(starts):
+        spec = SimRunSpec(scenario="coarse", start=start, seed=i,
+                          loop=LoopConfig(max_duration_s=80.0))
+        sim_summary, sim_violations = judged_run(spec)
+        outcome, log, codes = qtm_outcome(Faults(), spec)
+        qtm_violations = judge_outcome(spec, outcome, log.decisions)
+        rows.append((start, sim_summary, sim_violations, outcome.summary, qtm_violations))
+        assert codes == ["qtm_connected"]
+    for start, sim_s, sim_v, qtm_s, qtm_v in rows:
+        print(f"start {start}: sim docked {sim_s.docked} in {sim_s.duration_s:.1f} s, "
+              f"{sim_v.intervals} intervals, {sim_v.violations} violations; qtm docked "
+              f"{qtm_s.docked} in {qtm_s.duration_s:.1f} s, {qtm_v.intervals} intervals, "
+              f"{qtm_v.violations} violations, {qtm_s.hull_contacts} contacts")
+        assert sim_s.docked, (start, sim_s.end_reason)
+        assert qtm_s.docked, (start, qtm_s.end_reason)
+        assert sim_v.violations == qtm_v.violations == 0, (start, sim_v, qtm_v)
+        assert sim_s.hull_contacts == qtm_s.hull_contacts == 0
+    # The same campaign figures: docking times alike (the same decisions but for noise).
+    sim_mean = float(np.mean([r[1].duration_s for r in rows]))
+    qtm_mean = float(np.mean([r[3].duration_s for r in rows]))
+    assert abs(qtm_mean - sim_mean) <= 0.25 * sim_mean, (sim_mean, qtm_mean)
 
 
 def test_coarse_docks_with_the_pose_from_qtm() -> None:

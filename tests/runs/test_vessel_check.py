@@ -24,9 +24,9 @@ HIL = [sys.executable, "-m", "hil"]
 POSE = "/voyager/measurement/pose"
 
 
-def _check(tmp_path: Path, domain: int) -> subprocess.CompletedProcess[str]:
+def _check(tmp_path: Path, domain: int, head: str = "") -> subprocess.CompletedProcess[str]:
     config = tmp_path / "vessel.toml"
-    config.write_text(f'scenario = "coarse"\n[ros]\ndomain_id = {domain}\n')
+    config.write_text(f'scenario = "coarse"\n{head}[ros]\ndomain_id = {domain}\n')
     return subprocess.run([*HIL, "vessel", "--check", "--config", str(config), "--seconds", "2"],
                           env=dds_env(domain), capture_output=True, text=True, timeout=180,
                           check=False)
@@ -79,3 +79,19 @@ def test_check_fails_on_the_faulty_line(tmp_path: Path, offset: int, faults: Fee
     for line in failing:
         assert line in out, out
     assert "preflight FAILED" in result.stderr
+
+
+def test_the_ten_hertz_premise_passes_the_driver_feed_and_says_what_it_costs(
+        tmp_path: Path) -> None:
+    """Under pose_feed = "ros-10hz-receive-stamped" the driver's feed meets its premise; the
+    bound measured for it leaves the coarse scenario no winning cell, and the check says so."""
+    domain = own_domain(20, 40, 15)
+    with FeedPublisher(domain, FeedFaults(rate_hz=10.0, delay_s=0.0)):
+        result = _check(tmp_path, domain, 'pose_feed = "ros-10hz-receive-stamped"\n')
+    out = result.stdout
+    assert 'PASS  pose feed  premise in force: pose_feed = "ros-10hz-receive-stamped": 10 Hz, ' \
+           "stamped on receipt (hidden delay up to 20 ms); estimation bound 146.2 mm" in out, out
+    for what in ("rate", "latency"):
+        assert f"PASS  {POSE}  {what}: " in out, out
+    assert "FAIL  arena  controller: no winning cell" in out, out
+    assert result.returncode == 1
