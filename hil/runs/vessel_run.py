@@ -32,7 +32,7 @@ from hil.bag.run_info import RunInfo
 from hil.core.config import ConfigError
 from hil.core.pose_feeds import pose_feed
 from hil.core.records import EventLevel
-from hil.runs.feed_premise import measured_rate_hz, rate_refusal
+from hil.runs.feed_premise import measure_rate, rate_refusal
 from hil.runs.feed_watch import FeedWatch
 from hil.runs.live_diagnostics import FeedView
 from hil.runs.live_telemetry import TelemetryLog
@@ -195,11 +195,19 @@ def _slower_than_premise(pose: _PoseFeed, config: VesselConfig, log: RunLog,
                          now_ns: Callable[[], int]) -> str:
     """Measure the pose feed's rate over :data:`RATE_WINDOW_S`; return why it is refused, or "".
 
-    A refusal is logged (``pose_feed_premise``, ERROR) before the run stops.
+    A refusal is logged (``pose_feed_premise``, ERROR) before the run stops; a window in
+    which the run's clock stood still (a lockstep simulator waits for the first command)
+    is logged as a warning and not judged.
     """
     feed = pose_feed(config.pose_feed)
-    rate = measured_rate_hz(pose.count, RATE_WINDOW_S)
-    refusal = rate_refusal(rate, feed, f"the pose feed {pose.where}")
+    window = measure_rate(pose.count, RATE_WINDOW_S, now_ns)
+    if not window.measured:
+        log.event(max(0, now_ns()), EventLevel.WARN, EventCode.POSE_FEED_PREMISE.value,
+                  f"the pose feed's rate was not measured before the run: the run's clock "
+                  f"stood still for {RATE_WINDOW_S:g} s (a simulator in lockstep?)")
+        return ""
+    refusal = rate_refusal(window.rate_hz, feed, f"the pose feed {pose.where}",
+                           window.fastest_hz)
     if refusal:
         log.event(max(0, now_ns()), EventLevel.ERROR, EventCode.POSE_FEED_PREMISE.value, refusal)
     return refusal

@@ -258,10 +258,8 @@ def closed_loop_kernel(
     trace = np.zeros(N_TRACE)
     u_set = plant[P_U : P_U + 3].copy()
     a_set = plant[P_ALPHA : P_ALPHA + 2].copy()
-    tau_cmd = np.zeros(3)
-    tau = np.zeros(3)
-    imu_buf = np.zeros(3)
-    pose_buf = np.zeros(3)
+    tau_cmd, tau = np.zeros(3), np.zeros(3)
+    imu_buf, pose_buf = np.zeros(3), np.zeros(3)
     for k in range(n):
         nu_ref = refs[k // steps_per_ref]
         eta = plant[P_ETA : P_ETA + 3]
@@ -272,10 +270,8 @@ def closed_loop_kernel(
             imu_reading(nu, nu_dot, imu_noise[k], imu_bias[k], imu_buf)
             obs_imu(ekf, k * dt_ns, imu_buf[0], imu_buf[1], imu_buf[2])
             sampled = pose_available[k] and k % pose_every == 0
-            k_meas = pose_sensor_step(pose_ring, k, eta, pose_noise[k], sampled, pose_buf)
-            if k_meas >= 0:
-                k_stamp = k if pose_on_receipt else k_meas
-                obs_pose(ekf, k_stamp * dt_ns, pose_buf[0], pose_buf[1], pose_buf[2])
+            _observe_pose(ekf, pose_ring, k, dt_ns, eta, pose_noise[k], sampled,
+                          pose_on_receipt, pose_buf)
             nu_hat = ekf.x[3:6].copy()
             eta_hat = ekf.x[0:3].copy()
         else:
@@ -286,6 +282,29 @@ def closed_loop_kernel(
         plant_step(m_inv, coef, low.tp, method, dt, plant, u_set, a_set, b_env[k], trace)
         tau[:] = trace[TR_TAU : TR_TAU + 3]
         _write_row(out, k, k * dt, trace, plant, nu_hat, eta_hat, nu_ref, tau_cmd, u_set, a_set)
+
+
+@njit
+def _observe_pose(
+    ekf: EkfArrays,
+    pose_ring: FloatArray,
+    k: int,
+    dt_ns: int,
+    eta: FloatArray,
+    noise: FloatArray,
+    sampled: bool,
+    on_receipt: bool,
+    pose_buf: FloatArray,
+) -> None:
+    """Pass step k's pose sensor (delay line) and feed a delivered pose to the EKF.
+
+    Stamped with its delivery step when `on_receipt` (a driver stamping on receipt), else
+    with its measurement step.
+    """
+    k_meas = pose_sensor_step(pose_ring, k, eta, noise, sampled, pose_buf)
+    if k_meas >= 0:
+        k_stamp = k if on_receipt else k_meas
+        obs_pose(ekf, k_stamp * dt_ns, pose_buf[0], pose_buf[1], pose_buf[2])
 
 
 @njit

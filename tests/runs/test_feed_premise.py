@@ -9,7 +9,7 @@ import pytest
 from hil.adapters.qtm import QtmConfig
 from hil.core.config import ConfigError
 from hil.core.pose_feeds import DEFAULT_POSE_FEED, pose_feed
-from hil.runs.feed_premise import measured_rate_hz, qtm_rate_refusal, rate_refusal
+from hil.runs.feed_premise import measure_rate, qtm_rate_refusal, rate_refusal
 from hil.runs.vessel_config import VesselConfig
 
 QTM = pose_feed(DEFAULT_POSE_FEED)
@@ -64,8 +64,9 @@ def test_a_qtm_feed_is_measured_and_judged_against_the_premise(rate_hz: float,
     with QtmTestServer(_still, rate_hz=rate_hz) as server, QtmPoseSource(
             QtmConfig("127.0.0.1", "2", port=server.port), WallClock()) as source:
         assert source.wait_first(10.0)
-        rate = measured_rate_hz(lambda: source.counters.poses, 1.0)
-    assert rate == pytest.approx(rate_hz, rel=0.3)
-    text = rate_refusal(rate, QTM, "QTM")
+        window = measure_rate(lambda: source.counters.poses, 1.0)
+    assert window.rate_hz == pytest.approx(rate_hz, rel=0.3)
+    text = rate_refusal(window.rate_hz, QTM, "QTM", window.fastest_hz)
     assert bool(text) == refused, text
-    assert rate_refusal(rate, ROS, "QTM") == ""  # the 10-Hz premise takes either
+    # The 10-Hz premise takes either.
+    assert rate_refusal(window.rate_hz, ROS, "QTM", window.fastest_hz) == ""
