@@ -42,10 +42,11 @@ _Args = tuple[
 class Scratch:
     """A solve's working arrays that no controller keeps, for the next solve to reuse.
 
-    A fresh allocation of these (about 190 MB at the paper grid) costs its page faults
+    A fresh allocation of these (about 140 MB at the paper grid) costs its page faults
     inside the solve, 0.1-0.2 s on this machine; a reused set costs a memset. Shapes:
-    vt (2, m, npsi, nw, nx); bt, na, nb, d1, d2 (m, npsi, nw, nx); ch and the bands
-    (m, npsi, 2).
+    vt (2, m, npsi, nw, nx); bt, na, nb (m, npsi, nw, nx); ch, band_a, band_b
+    (m, npsi, 2); the join's dilation scratch d1, d2 (slots, m, nw, nx) and band_1,
+    band_2 (slots, m, 2): one heading's at a time per thread (slots: the solve's threads).
     """
 
     vt: U64Array
@@ -61,19 +62,21 @@ class Scratch:
     band_2: I32Array
 
     @staticmethod
-    def allocate(m: int, npsi: int, nw: int, nx: int) -> Scratch:
-        """Return a zeroed set for m layers of npsi x nw x nx words."""
+    def allocate(m: int, npsi: int, nw: int, nx: int, slots: int = 1) -> Scratch:
+        """Return a zeroed set for m layers of npsi x nw x nx words, `slots` join threads."""
         rows = (m, npsi, nw, nx)
-        bt, na, nb, d1, d2 = (np.zeros(rows, dtype=np.uint64) for _ in range(5))
-        ch, band_a, band_b, band_1, band_2 = (np.zeros((m, npsi, 2), np.int32) for _ in range(5))
+        bt, na, nb = (np.zeros(rows, dtype=np.uint64) for _ in range(3))
+        d1, d2 = (np.zeros((slots, m, nw, nx), dtype=np.uint64) for _ in range(2))
+        ch, band_a, band_b = (np.zeros((m, npsi, 2), np.int32) for _ in range(3))
+        band_1, band_2 = (np.zeros((slots, m, 2), np.int32) for _ in range(2))
         return Scratch(
             np.zeros((2, *rows), dtype=np.uint64), bt, na, nb, d1, d2, ch, band_a, band_b,
             band_1, band_2,
         )  # fmt: skip
 
-    def fits(self, m: int, npsi: int, nw: int, nx: int) -> bool:
-        """Return whether this set serves a solve of that size."""
-        return self.bt.shape == (m, npsi, nw, nx)
+    def fits(self, m: int, npsi: int, nw: int, nx: int, slots: int = 1) -> bool:
+        """Return whether this set serves a solve of that size on `slots` join threads."""
+        return self.bt.shape == (m, npsi, nw, nx) and self.d1.shape[0] == slots
 
     def clear(self) -> None:
         """Zero the class-1 set (the other arrays are written before they are read)."""
@@ -114,8 +117,11 @@ class LevelSolver:
         self.pads = np.ascontiguousarray(pads, dtype=np.int32)
         self._pt = np.zeros((m, npsi, nw, n_planes, nx), dtype=np.uint64)
         self._wt = np.zeros((m, npsi, nw + 2 * pw, nx + 2 * px), dtype=np.uint64)
-        if scratch is None or not scratch.fits(m, npsi, nw, nx):
-            scratch = Scratch.allocate(m, npsi, nw, nx)
+        self.threads = max(1, int(threads))
+        """Threads :meth:`advance` uses."""
+        slots = self._threaded()[1] or 1
+        if scratch is None or not scratch.fits(m, npsi, nw, nx, slots):
+            scratch = Scratch.allocate(m, npsi, nw, nx, slots)
         else:
             scratch.clear()
         self._scratch = scratch
@@ -135,8 +141,6 @@ class LevelSolver:
         self._band_1 = scratch.band_1
         self._band_2 = scratch.band_2
         self._lattice = np.array(lattice_shape, dtype=np.int32)
-        self.threads = max(1, int(threads))
-        """Threads :meth:`advance` uses."""
         self.viable = viable
         """The viable words it was built on (the Controller keeps them)."""
         self.level = 0

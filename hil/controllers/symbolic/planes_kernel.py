@@ -240,18 +240,17 @@ def _dilate(
     sband: I32Array,
     dst: U64Array,
     dband: I32Array,
-    k: int,
     stride: int,
     size: int,
 ) -> None:
-    """dst[u, k] = OR of src[v, k] over v = u and its neighbours u -+ stride on one lattice axis.
+    """dst[u] = OR of src[v] over v = u and its neighbours u -+ stride on one lattice axis.
 
     The axis has `size` points, u's coordinate on it is (u // stride) % size. Arrays
-    (m, npsi, nw, nx), only each row's band [lo, hi] (bands (m, npsi, 2)) is read / set.
+    (m, nw, nx) of one heading, only each row's band [lo, hi] (bands (m, 2)) is read / set.
     """
     m = src.shape[0]
-    nw = src.shape[2]
-    nx = src.shape[3]
+    nw = src.shape[1]
+    nx = src.shape[2]
     for u in range(m):
         coord = (u // stride) % size
         v0 = u - stride if coord > 0 else u
@@ -259,20 +258,20 @@ def _dilate(
         lo = nx
         hi = -1
         for v in range(v0, v1 + 1, stride):
-            if sband[v, k, 0] <= sband[v, k, 1]:
-                lo = min(lo, sband[v, k, 0])
-                hi = max(hi, sband[v, k, 1])
-        dband[u, k, 0] = lo
-        dband[u, k, 1] = hi
+            if sband[v, 0] <= sband[v, 1]:
+                lo = min(lo, sband[v, 0])
+                hi = max(hi, sband[v, 1])
+        dband[u, 0] = lo
+        dband[u, 1] = hi
         if lo > hi:
             continue
         nb = hi + 1 - lo
         for w in range(nw):
-            dw = dst[u, k, w, lo : hi + 1]
+            dw = dst[u, w, lo : hi + 1]
             for i in range(nb):
                 dw[i] = _ZERO
             for v in range(v0, v1 + 1, stride):
-                _or_into(dw, src[v, k, w], lo, sband[v, k, 0], sband[v, k, 1])
+                _or_into(dw, src[v, w], lo, sband[v, 0], sband[v, 1])
 
 
 @njit
@@ -296,8 +295,10 @@ def _apply_heading(
     """Join nA[p] and the neighbours' nB[u] into every layer p at heading k; return rows changed.
 
     The union of nB over the 3 x 3 x 3 lattice box around p (clipped: N(p) and p) is
-    taken separably, one axis at a time (D1, D2 scratch, shapes of nB). It holds nB[p]
-    too, which adds nothing: nB[p] is inside A_p, so inside W_p or nA[p].
+    taken separably, one axis at a time, in D1, D2 (m, nw, nx) with bands band_1, band_2
+    (m, 2): one heading's scratch, small enough to stay in the core's cache from one
+    axis to the next. It holds nB[p] too, which adds nothing: nB[p] is inside A_p, so
+    inside W_p or nA[p].
     Writes ch[:, k], heading k of Wt and of Pt only.
     """
     m = Wt.shape[0]
@@ -307,9 +308,9 @@ def _apply_heading(
     n_c = lattice[2]
     n_b = lattice[1]
     n_a = lattice[0]
-    _dilate(nB, band_b, D1, band_1, k, 1, n_c)
-    _dilate(D1, band_1, D2, band_2, k, n_c, n_b)
-    _dilate(D2, band_2, D1, band_1, k, n_c * n_b, n_a)
+    _dilate(nB[:, k], band_b[:, k], D1, band_1, 1, n_c)
+    _dilate(D1, band_1, D2, band_2, n_c, n_b)
+    _dilate(D2, band_2, D1, band_1, n_c * n_b, n_a)
     acc = np.empty((nw, nx), dtype=np.uint64)
     n_changed = 0
     for p in range(m):
@@ -317,8 +318,8 @@ def _apply_heading(
         ch[p, k, 1] = -1
         a0 = band_a[p, k, 0]
         a1 = band_a[p, k, 1]
-        d0 = band_1[p, k, 0]
-        d1 = band_1[p, k, 1]
+        d0 = band_1[p, 0]
+        d1 = band_1[p, 1]
         lo = min(a0, d0)
         hi = max(a1, d1)
         if lo > hi:
@@ -330,7 +331,7 @@ def _apply_heading(
             for i in range(nb):
                 aw[i] = _ZERO
             _or_into(aw, nA[p, k, w], lo, a0, a1)
-            _or_into(aw, D1[p, k, w], lo, d0, d1)
+            _or_into(aw, D1[p, w], lo, d0, d1)
             cur = Wt[p, k, pw + w, px + lo : px + hi + 1]
             for i in range(nb):
                 f = aw[i] & ~cur[i]
@@ -402,8 +403,8 @@ def advance_serial(
     n = 0
     for k in range(Wt.shape[1]):
         n += _apply_heading(
-            k, level + 1, Wt, nA, nB, band_a, band_b, D1, D2, band_1, band_2, ch, lattice,
-            Pt, pads,
+            k, level + 1, Wt, nA, nB, band_a, band_b, D1[0], D2[0], band_1[0], band_2[0], ch,
+            lattice, Pt, pads,
         )  # fmt: skip
     return n
 
@@ -429,9 +430,11 @@ def advance_parallel(
     Pt: U64Array,
     pads: I32Array,
 ) -> int:
-    """:func:`advance_serial` with the inputs' sweeps and the layers' joins threaded.
+    """:func:`advance_serial` with the inputs' sweeps and the headings' joins threaded.
 
-    A sweep writes only its input's entries, a join only its layer's.
+    A sweep writes only its input's entries, a heading's join only that heading's; the
+    joins run as one task per scratch slot (D1.shape[0]), each over every slots-th heading
+    with its own scratch.
     """
     if level + 1 > (1 << Pt.shape[3]) - 1:
         return -1
@@ -440,12 +443,14 @@ def advance_parallel(
     for u in prange(m):
         _sweep_input(u, Wt, Bt, Vt, nA, nB, band_a, band_b, ch, succ, heading, px, pw)
     npsi = Wt.shape[1]
-    counts = np.zeros(npsi, dtype=np.int64)
-    for k in prange(npsi):
-        counts[k] = _apply_heading(
-            k, level + 1, Wt, nA, nB, band_a, band_b, D1, D2, band_1, band_2, ch, lattice,
-            Pt, pads,
-        )  # fmt: skip
+    slots = D1.shape[0]
+    counts = np.zeros(slots, dtype=np.int64)
+    for t in prange(slots):
+        for k in range(t, npsi, slots):
+            counts[t] += _apply_heading(
+                k, level + 1, Wt, nA, nB, band_a, band_b, D1[t], D2[t], band_1[t], band_2[t],
+                ch, lattice, Pt, pads,
+            )  # fmt: skip
     return int(counts.sum())
 
 

@@ -174,7 +174,7 @@ class Synthesizer:
         nw = (ny + 63) // 64
         n_ranges = int(self._psi_lo.shape[0])
         rows_words = m * nx * npsi * nw * 8  # one (m, n_rows, nw) array of words
-        return (
+        return int(
             n_ranges * nx * (ny + 8 * nw)  # free masks and their words
             + N_CLASSES * rows_words  # viable
             + m * (nx + 2 * px) * (npsi + 2 * ph) * (nw + 2 * pw) * 8  # W
@@ -183,9 +183,9 @@ class Synthesizer:
             + 2 * rows_words // 8  # kill
             + 2 * nx * ny * npsi * 4  # the controller's values from rest, and a layer's
             + (self._viable.f_layers + 1) * (nx + 2 * px) * (nw + 2 * pw) * 8
-            # planes kernel: its W, viable, B, new A, new B, 2 scratch, values
-            + m * npsi * (nw + 2 * pw) * (nx + 2 * px) * 8
-            + (N_CLASSES - 1 + 5 + N_PLANES) * rows_words
+            + m * npsi * (nw + 2 * pw) * (nx + 2 * px) * 8  # planes kernel: W, then the rest
+            + (N_CLASSES - 1 + 3 + N_PLANES + 2 * (self._threads or _max_threads()) / npsi)
+            * rows_words
         )
 
     @property
