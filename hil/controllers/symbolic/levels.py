@@ -44,7 +44,8 @@ class Scratch:
 
     A fresh allocation of these (about 140 MB at the paper grid) costs its page faults
     inside the solve, 0.1-0.2 s on this machine; a reused set costs a memset. Shapes:
-    vt (2, m, npsi, nw, nx); bt, na, nb (m, npsi, nw, nx); ch, band_a, band_b
+    vt (2, m, npsi, nw, nx); bt (m, npsi, nw, nx); na, nb (npsi, m, nw, nx), heading
+    first (:mod:`planes_kernel`); ch, band_a, band_b
     (m, npsi, 2); the join's dilation scratch d1, d2 (slots, m, nw, nx) and band_1,
     band_2 (slots, m, 2): one heading's at a time per thread (slots: the solve's threads).
     """
@@ -65,7 +66,8 @@ class Scratch:
     def allocate(m: int, npsi: int, nw: int, nx: int, slots: int = 1) -> Scratch:
         """Return a zeroed set for m layers of npsi x nw x nx words, `slots` join threads."""
         rows = (m, npsi, nw, nx)
-        bt, na, nb = (np.zeros(rows, dtype=np.uint64) for _ in range(3))
+        bt = np.zeros(rows, dtype=np.uint64)
+        na, nb = (np.zeros((npsi, m, nw, nx), dtype=np.uint64) for _ in range(2))
         d1, d2 = (np.zeros((slots, m, nw, nx), dtype=np.uint64) for _ in range(2))
         ch, band_a, band_b = (np.zeros((m, npsi, 2), np.int32) for _ in range(3))
         band_1, band_2 = (np.zeros((slots, m, 2), np.int32) for _ in range(2))

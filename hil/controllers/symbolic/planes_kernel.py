@@ -8,8 +8,9 @@ Layout (x contiguous, so every step is a vector operation over a band of x rows)
 
 - ``Wt`` (m, npsi, nw + 2 pw, nx + 2 px): bit b of word pw + w at x index px + i of
   (layer u, heading k) is cell (i, 64 w + b, k). Padding is zero (outside the grid).
-- ``Bt``, ``nA``, ``nB`` (m, npsi, nw, nx): the class-1 set B_u so far, and the states
-  that joined A_u / B_u at the level being computed.
+- ``Bt`` (m, npsi, nw, nx): the class-1 set B_u so far; ``nA``, ``nB`` (npsi, m, nw, nx):
+  the states that joined A_u / B_u at the level being computed, heading first, so that a
+  heading's join reads its rows of every layer from one contiguous block.
 - ``Vt`` (2, m, npsi, nw, nx): viable words of classes 0 and 1 (:mod:`sweep`'s viable,
   transposed).
 - ``ch`` (m, npsi, 2): the x range [lo, hi] of the rows of (u, k) that changed at the
@@ -31,9 +32,10 @@ box changed at the last level, so states outside the band keep last level's resu
 exact. Then each layer p joins nA_p and the nB_u of its lattice neighbours u in N(p).
 
 Exactness against :mod:`sweep`, which computes B_u only on candidates in
-W_u or joining A_u: with box1 containing box0, heading1 containing heading0 and viable1
-inside viable0 (:func:`nested_classes` checks all three; the Synthesizer uses
-:mod:`sweep` otherwise), viable1 and Pre1(W_u) imply viable0 and Pre0(W_u), so that
+W_u or joining A_u (this kernel on every viable state of the band): with box1
+containing box0, heading1 containing heading0 and viable1 inside viable0
+(:func:`nested_classes` checks all three; the Synthesizer uses :mod:`sweep` otherwise),
+viable1 and Pre1(W_u) imply viable0 and Pre0(W_u), so that
 restriction removes nothing and B_u = viable1 and Pre1(W_u). Only B's new states need
 joining: the older ones joined W_p at their own level. A state's value is the level it
 joined at, the same BFS levels as :mod:`sweep`.
@@ -144,8 +146,10 @@ def _sweep_input(
     """Compute nA[u], nB[u] and their bands for the next level; add nB[u] to Bt[u].
 
     Reads Wt[u] and ch[u] only, writes only input u's entries (threads may run inputs
-    side by side). Each row range is read word by word into `rows` (the OR of a row's
-    words), so every loop runs over contiguous x and vectorizes.
+    side by side). Every row of the changed band is box-tested: a first pass that kept
+    only the rows holding a candidate (viable, not yet joined) cost more than the tests
+    it saved (0.9x a level without it, paper grid). The joined rows' band comes from
+    `rows` (the OR of a row's words), so every loop runs over contiguous x and vectorizes.
     """
     npsi = Wt.shape[1]
     nw = Bt.shape[2]
@@ -167,35 +171,6 @@ def _sweep_input(
             lo, hi = changed_band(ch, u, k0, h0, h1, box, nx)
             if lo > hi:
                 continue
-            # Candidates: viable and not yet in W_u (class 0) / in B_u (class 1); a
-            # class-1 state also in W_u or joining A_u (B_u is inside A_u). Only the
-            # candidates' rows need the box test.
-            nb = hi + 1 - lo
-            r = rows[:nb]
-            for i in range(nb):
-                r[i] = _ZERO
-            a0 = max(band_a[u, k0, 0], lo)
-            a1 = min(band_a[u, k0, 1], hi)
-            for w in range(nw):
-                vw = Vt[c, u, k0, w, lo : hi + 1]
-                cur = Wt[u, k0, pw + w, px + lo : px + hi + 1]
-                if c == 0:
-                    for i in range(nb):
-                        r[i] |= vw[i] & ~cur[i]
-                    continue
-                bw = Bt[u, k0, w, lo : hi + 1]
-                for i in range(nb):
-                    r[i] |= vw[i] & ~bw[i] & cur[i]
-                if a0 <= a1:
-                    na = nA[u, k0, w, a0 : a1 + 1]
-                    va = Vt[1, u, k0, w, a0 : a1 + 1]
-                    ba = Bt[u, k0, w, a0 : a1 + 1]
-                    ra = rows[a0 - lo : a1 + 1 - lo]
-                    for i in range(a1 + 1 - a0):
-                        ra[i] |= va[i] & ~ba[i] & na[i]
-            lo, hi = row_ends(rows, lo, nb, nx)
-            if lo > hi:
-                continue
             nb = hi + 1 - lo
             box_test(Wt, u, k0, h0, h1, box, lo, hi, px, pw, H, L, R, out)
             dst = nA if c == 0 else nB
@@ -205,7 +180,7 @@ def _sweep_input(
             for w in range(nw):
                 vw = Vt[c, u, k0, w, lo : hi + 1]
                 ow = out[w, lo : hi + 1]
-                dw = dst[u, k0, w, lo : hi + 1]
+                dw = dst[k0, u, w, lo : hi + 1]
                 if c == 0:
                     cur = Wt[u, k0, pw + w, px + lo : px + hi + 1]
                     for i in range(nb):
@@ -308,7 +283,7 @@ def _apply_heading(
     n_c = lattice[2]
     n_b = lattice[1]
     n_a = lattice[0]
-    _dilate(nB[:, k], band_b[:, k], D1, band_1, 1, n_c)
+    _dilate(nB[k], band_b[:, k], D1, band_1, 1, n_c)
     _dilate(D1, band_1, D2, band_2, n_c, n_b)
     _dilate(D2, band_2, D1, band_1, n_c * n_b, n_a)
     acc = np.empty((nw, nx), dtype=np.uint64)
@@ -330,7 +305,7 @@ def _apply_heading(
             aw = acc[w, :nb]
             for i in range(nb):
                 aw[i] = _ZERO
-            _or_into(aw, nA[p, k, w], lo, a0, a1)
+            _or_into(aw, nA[k, p, w], lo, a0, a1)
             _or_into(aw, D1[p, w], lo, d0, d1)
             cur = Wt[p, k, pw + w, px + lo : px + hi + 1]
             for i in range(nb):
