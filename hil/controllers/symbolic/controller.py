@@ -148,11 +148,25 @@ class Controller:
         self._best = np.empty(1, dtype=np.int32)
         self._worsts = np.empty(tables.n_inputs, dtype=np.int32)
         self.rest_index = lattice.nearest(np.zeros(3))
-        rest_values = self.layer_values(self.rest_index)
-        rest_values.flags.writeable = False
-        self._rest_values = rest_values
-        winning_rest = int(np.count_nonzero(rest_values >= 0))
-        self.stats = replace(stats, winning_cells=winning_rest)
+        # The values from rest (tens of ms at the paper grid) wait for their first reader:
+        # an early controller is put in force at once.
+        self._rest_values: I32Array | None = None
+        self._stats = stats
+        self._counted = False
+
+    @property
+    def stats(self) -> SynthesisStats:
+        """Return the solve's figures, `winning_cells` counted from rest."""
+        if not self._counted:
+            winning = int(np.count_nonzero(self.values >= 0))
+            self._stats = replace(self._stats, winning_cells=winning)
+            self._counted = True
+        return self._stats
+
+    @stats.setter
+    def stats(self, stats: SynthesisStats) -> None:
+        self._stats = stats
+        self._counted = True
 
     # ------------------------------------------------------------------ properties
 
@@ -179,6 +193,10 @@ class Controller:
     @property
     def values(self) -> I32Array:
         """Return V from rest (reference zero in force), shape (nx, ny, npsi); -1 losing."""
+        if self._rest_values is None:
+            rest_values = self.layer_values(self.rest_index)
+            rest_values.flags.writeable = False
+            self._rest_values = rest_values
         return self._rest_values
 
     def layer_values(self, previous: int) -> I32Array:
