@@ -97,7 +97,8 @@ def report_ages_of(scenario: Scenario) -> ReportAgeBudget:
 
 
 def synthesizer_for(
-    scenario: Scenario, cache_dir: Path | None = None, threads: int = 1
+    scenario: Scenario, cache_dir: Path | None = None, threads: int = 1,
+    prepare_outputs: bool = False,
 ) -> Synthesizer:
     """Return a synthesizer holding the scenario grid's tables (from the disk cache).
 
@@ -107,6 +108,9 @@ def synthesizer_for(
         scenario: Whose grid, inputs and budget.
         cache_dir: Table cache folder (default: the package's).
         threads: Kernel threads per solve (see :class:`Synthesizer`).
+        prepare_outputs: Map the next solve's result arrays between solves (the vessel's
+            re-synthesis in a thread; see :class:`Synthesizer`).
     """
     tables, _ = SymbolicProblem.from_scenario(scenario).tables(cache_dir=cache_dir)
-    return Synthesizer(tables, threads=threads, cache_dir=cache_dir)
+    return Synthesizer(tables, threads=threads, cache_dir=cache_dir,
+                       prepare_outputs=prepare_outputs)

@@ -232,7 +232,8 @@ def run_on_ros(config: VesselConfig, out_dir: Path | None = None,
     wall_start = time.perf_counter()
     scenario = load_scenario(config.scenario).for_pose_feed(config.pose_feed)
     progress(f"building the abstraction for the {scenario.name!r} scenario...")
-    synthesizer = synthesizer_for(scenario, threads=config.loop.synthesis_threads)
+    synthesizer = synthesizer_for(scenario, threads=config.loop.synthesis_threads,
+                                  prepare_outputs=True)
     if out_dir is None:
         out_dir = Path(config.runs_dir) / f"{scenario.name}-vessel-{time.strftime('%Y%m%d-%H%M%S')}"
     layout = layout_from_scenario(scenario)

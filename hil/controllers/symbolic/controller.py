@@ -148,25 +148,12 @@ class Controller:
         self._best = np.empty(1, dtype=np.int32)
         self._worsts = np.empty(tables.n_inputs, dtype=np.int32)
         self.rest_index = lattice.nearest(np.zeros(3))
-        # The values from rest (tens of ms at the paper grid) wait for their first reader:
-        # an early controller is put in force at once.
+        # The values from rest (30 ms at the paper grid) wait for their first reader: an
+        # early controller goes in force at once. Its winning count is the rest layer's
+        # set bits (no bit beyond the grid is ever set).
         self._rest_values: I32Array | None = None
-        self._stats = stats
-        self._counted = False
-
-    @property
-    def stats(self) -> SynthesisStats:
-        """Return the solve's figures, `winning_cells` counted from rest."""
-        if not self._counted:
-            winning = int(np.count_nonzero(self.values >= 0))
-            self._stats = replace(self._stats, winning_cells=winning)
-            self._counted = True
-        return self._stats
-
-    @stats.setter
-    def stats(self, stats: SynthesisStats) -> None:
-        self._stats = stats
-        self._counted = True
+        rest_words = winning[self.rest_index]
+        self.stats = replace(stats, winning_cells=int(np.bitwise_count(rest_words).sum()))
 
     # ------------------------------------------------------------------ properties
 

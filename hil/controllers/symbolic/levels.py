@@ -25,10 +25,34 @@ from hil.controllers.symbolic.planes_kernel import (
     transpose_viable,
 )
 from hil.core.arrays import U64Array
+from hil.core.jit import njit
 
 I32Array = NDArray[np.int32]
 
-__all__ = ["LevelSolver", "Scratch"]
+__all__ = ["LevelSolver", "Outputs", "Scratch", "Watch"]
+
+@dataclass(frozen=True, slots=True)
+class Watch:
+    """A state whose controller a solve hands out as soon as it covers it.
+
+    Attributes:
+        cell: Grid cell (i, j, k) of the vessel's estimate.
+        reference: Input index of the reference in force (the previous command).
+    """
+
+    cell: tuple[int, int, int]
+    reference: int
+
+    def covered_by(self, winning: U64Array, pads: I32Array) -> bool:
+        """Return whether the state has joined `winning`, in :mod:`frontier_kernel`'s layout.
+
+        winning: shape (m, nx + 2 px, npsi + 2 ph, nw + 2 pw); pads (px, ph, pw).
+        """
+        i, j, k = self.cell
+        px, ph, pw = (int(p) for p in pads)
+        word = int(winning[self.reference, px + i, ph + k, pw + (j >> 6)])
+        return bool((word >> (j & 63)) & 1)
+
 
 _Args = tuple[
     U64Array, U64Array, U64Array, U64Array, U64Array,  # Wt, Bt, Vt, nA, nB
@@ -85,6 +109,40 @@ class Scratch:
         self.bt.fill(0)
 
 
+@njit
+def _touch_pages(flat: U64Array) -> None:
+    """Write a zero every 4 KiB of `flat`, so the kernel maps (and zeroes) every page now."""
+    for i in range(0, flat.shape[0], 512):
+        flat[i] = 0
+
+
+@dataclass(frozen=True, slots=True)
+class Outputs:
+    """A solve's result arrays, zero and with every page mapped before the solve starts.
+
+    Each solve hands its winning bits and value planes to its controller, so every solve
+    needs new ones (about 255 MB at the paper grid, plus 67 MB for an early controller's
+    copy of the bits). Fresh, their first touch (page faults, the kernel zeroing each
+    page) falls inside the solve's first levels and the early copy; prepared between
+    solves (:class:`~hil.controllers.symbolic.synthesis.Synthesizer`'s
+    ``prepare_outputs``), it does not. Shapes: wt and early (m, npsi, nw + 2 pw,
+    nx + 2 px), pt (m, npsi, nw, n_planes, nx).
+    """
+
+    wt: U64Array
+    pt: U64Array
+    early: U64Array
+
+    @staticmethod
+    def allocate(wt_shape: tuple[int, ...], pt_shape: tuple[int, ...]) -> Outputs:
+        """Return zeroed arrays of these shapes, every page touched (GIL released)."""
+        wt, pt, early = (np.zeros(shape, dtype=np.uint64) for shape in (wt_shape, pt_shape,
+                                                                          wt_shape))
+        for array in (wt, pt, early):
+            _touch_pages(array.reshape(-1))
+        return Outputs(wt, pt, early)
+
+
 class LevelSolver:
     """One solve of the game on :mod:`planes_kernel`, one level per :meth:`advance`.
 
@@ -99,6 +157,8 @@ class LevelSolver:
         threads: 1 runs on the calling thread; more use numba's threads (at most that many).
         scratch: Working arrays of an earlier solve of the same size to reuse
             (:attr:`scratch` hands them on once the solve is done); None allocates.
+        outputs: Result arrays prepared ahead (:class:`Outputs`, zero); None (or of
+            another size) allocates.
     """
 
     def __init__(
@@ -112,13 +172,19 @@ class LevelSolver:
         n_planes: int,
         threads: int = 1,
         scratch: Scratch | None = None,
+        outputs: Outputs | None = None,
     ) -> None:
         nx, npsi, nw = goal.shape
         m = viable.shape[1]
         px, _, pw = (int(p) for p in pads)
         self.pads = np.ascontiguousarray(pads, dtype=np.int32)
-        self._pt = np.zeros((m, npsi, nw, n_planes, nx), dtype=np.uint64)
-        self._wt = np.zeros((m, npsi, nw + 2 * pw, nx + 2 * px), dtype=np.uint64)
+        pt_shape, wt_shape = (m, npsi, nw, n_planes, nx), (m, npsi, nw + 2 * pw, nx + 2 * px)
+        self._early: U64Array | None = None
+        if outputs is not None and outputs.pt.shape == pt_shape and outputs.wt.shape == wt_shape:
+            self._pt, self._wt, self._early = outputs.pt, outputs.wt, outputs.early
+        else:
+            self._pt = np.zeros(pt_shape, dtype=np.uint64)
+            self._wt = np.zeros(wt_shape, dtype=np.uint64)
         self.threads = max(1, int(threads))
         """Threads :meth:`advance` uses."""
         slots = self._threaded()[1] or 1
@@ -232,5 +298,10 @@ class LevelSolver:
         solver's own array once :attr:`done`; planes: (m, npsi, nw, n_planes, nx), the
         solver's own array (read-only to the caller; see the module's docstring).
         """
-        winning = self._wt if self.done else self._wt.copy()
-        return winning, self._pt
+        if self.done:
+            return self._wt, self._pt
+        if self._early is not None:  # prepared: no page faults on the way to the vessel
+            winning, self._early = self._early, None
+            np.copyto(winning, self._wt)
+            return winning, self._pt
+        return self._wt.copy(), self._pt

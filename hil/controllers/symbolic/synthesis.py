@@ -12,7 +12,7 @@ import time
 import tracemalloc
 from collections import OrderedDict, deque
 from collections.abc import Iterator
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from pathlib import Path
 
 import numba
@@ -30,7 +30,7 @@ from hil.controllers.symbolic.frontier_kernel import (
 )
 from hil.controllers.symbolic.kernels import pack_rows
 from hil.controllers.symbolic.lattice import InputLattice
-from hil.controllers.symbolic.levels import LevelSolver, Scratch
+from hil.controllers.symbolic.levels import LevelSolver, Outputs, Scratch, Watch
 from hil.controllers.symbolic.planes_kernel import from_sweep_layout, nested_classes
 from hil.controllers.symbolic.problem import SymbolicProblem
 from hil.controllers.symbolic.safety import solve_safe_set
@@ -62,29 +62,6 @@ _MEMO: OrderedDict[str, Controller] = OrderedDict()
 _MEMO_LOCK = threading.Lock()
 
 
-@dataclass(frozen=True, slots=True)
-class Watch:
-    """A state whose controller a solve hands out as soon as it covers it.
-
-    Attributes:
-        cell: Grid cell (i, j, k) of the vessel's estimate.
-        reference: Input index of the reference in force (the previous command).
-    """
-
-    cell: tuple[int, int, int]
-    reference: int
-
-    def covered_by(self, winning: U64Array, pads: I32Array) -> bool:
-        """Return whether the state has joined `winning`, in :mod:`sweep`'s layout.
-
-        winning: shape (m, nx + 2 px, npsi + 2 ph, nw + 2 pw); pads (px, ph, pw).
-        """
-        i, j, k = self.cell
-        px, ph, pw = (int(p) for p in pads)
-        word = int(winning[self.reference, px + i, ph + k, pw + (j >> 6)])
-        return bool((word >> (j & 63)) & 1)
-
-
 def _max_threads() -> int:
     return int(numba.config.NUMBA_NUM_THREADS)  # type: ignore[attr-defined]
 
@@ -106,6 +83,11 @@ class Synthesizer:
         cache_dir: The table cache folder whose ``controllers/`` is the store
             (:func:`~hil.controllers.symbolic.abstraction.default_cache_dir` if None).
         kernel: One of :data:`KERNELS`; both give identical winning sets and values.
+        prepare_outputs: After each planes solve, once its caller has taken the full
+            controller and asks for more, allocate and map the next solve's result
+            arrays (:class:`~hil.controllers.symbolic.levels.Outputs`, about 320 MB at
+            the paper grid), so that the next layout's solve starts without page faults
+            (the re-synthesis beside a vessel's loop).
     """
 
     def __init__(
@@ -117,6 +99,7 @@ class Synthesizer:
         use_cache: bool = True,
         cache_dir: Path | None = None,
         kernel: str = "planes",
+        prepare_outputs: bool = False,
     ) -> None:
         if threads is not None and threads < 1:
             raise GridError(f"threads must be >= 1, got {threads!r}")
@@ -135,6 +118,8 @@ class Synthesizer:
         self._reuse_lock = threading.Lock()
         self._spare: Scratch | None = None
         """The working arrays of the last finished planes solve (the next one reuses them)."""
+        self._prepare = prepare_outputs and kernel == "planes"
+        self._ready: Outputs | None = None
         self.sources = ControllerSources()
         succ = tables.succ
         self._reach = np.ascontiguousarray(
@@ -183,7 +168,8 @@ class Synthesizer:
             + 2 * rows_words // 8  # kill
             + 2 * nx * ny * npsi * 4  # the controller's values from rest, and a layer's
             + (self._viable.f_layers + 1) * (nx + 2 * px) * (nw + 2 * pw) * 8
-            + m * npsi * (nw + 2 * pw) * (nx + 2 * px) * 8  # planes kernel: W, then the rest
+            + m * npsi * (nw + 2 * pw) * (nx + 2 * px) * 8 * (3 if self._prepare else 1)
+            + (N_PLANES * rows_words if self._prepare else 0)  # the next solve's outputs
             + (N_CLASSES - 1 + 3 + N_PLANES + 2 * (self._threads or _max_threads()) / npsi)
             * rows_words
         )
@@ -269,6 +255,14 @@ class Synthesizer:
                 f"cells, {s.free_cells!r} free cells, {int(obstacles.sum())!r} obstacle cells"
             )
         yield controller
+        if self._prepare and self._ready is None:
+            nx, _, npsi = self._tables.grid.shape
+            px, _, pw = (int(p) for p in self._pads)
+            m, nw = self._tables.n_inputs, (self._tables.grid.ny + 63) // 64
+            ready = Outputs.allocate((m, npsi, nw + 2 * pw, nx + 2 * px),
+                                     (m, npsi, nw, N_PLANES, nx))
+            with self._reuse_lock:
+                self._ready = ready
 
     def start_from(self, problem: SymbolicProblem) -> None:
         """Make `problem`'s layout the one the next solve starts from, without solving it.
@@ -321,9 +315,10 @@ class Synthesizer:
         axes = self._lattice.axes
         with self._reuse_lock:
             scratch, self._spare = self._spare, None
+            outputs, self._ready = self._ready, None
         return LevelSolver(
             goal, viable, self._pads, t.succ, t.heading,
-            (len(axes[0]), len(axes[1]), len(axes[2])), N_PLANES, threads, scratch,
+            (len(axes[0]), len(axes[1]), len(axes[2])), N_PLANES, threads, scratch, outputs,
         )  # fmt: skip
 
     def _frontier_stages(

@@ -77,3 +77,35 @@ def test_a_state_in_the_target_is_covered_at_once_and_a_losing_one_never(
         if wanted == 0:  # the goal alone, before any level ran
             assert stages[0].stats.levels == 0
             np.testing.assert_array_equal(stages[0].values, np.where(values == 0, 0, -1))
+
+
+def test_prepared_outputs_give_the_same_controllers_and_keep_each_early_copy(
+    problem: SymbolicProblem, tables: Tables, controller: Controller
+) -> None:
+    """A synthesizer that maps the next solve's arrays between solves (the vessel's).
+
+    Three staged solves in a row on one synthesizer: each on prepared arrays after the
+    first. Every controller equals a fresh synthesizer's, and an early controller's bits
+    stay those of its level while the solve goes on and after the next solve (its copy is
+    its own, not an array a later solve writes into).
+    """
+    rest = controller.rest_index
+    cell = _watched_cells(controller, rest)[1]
+    value = controller.cell_value(cell, rest)
+    prepared = Synthesizer(tables, memo=False, use_cache=False, prepare_outputs=True)
+    kept: list[tuple[Controller, Controller, np.ndarray]] = []
+    for _ in range(3):
+        early, full = prepared.solve_stages(problem, Watch(cell, rest))
+        kept.append((early, full, early.winning_words.copy()))
+    for early, full, bits in kept:
+        assert not early.stats.complete
+        assert full.stats.complete
+        np.testing.assert_array_equal(early.winning_words, bits)
+        np.testing.assert_array_equal(full.winning_words, controller.winning_words)
+        np.testing.assert_array_equal(full.value_planes, controller.value_planes)
+        np.testing.assert_array_equal(
+            early.values, np.where(controller.values <= value, controller.values, -1))
+        assert early.stats.winning_cells == int((early.values >= 0).sum())
+    # Every solve got arrays of its own.
+    arrays = [id(c.winning_words) for e, f, _ in kept for c in (e, f)]
+    assert len(set(arrays)) == len(arrays)
