@@ -20,7 +20,8 @@ from numpy.typing import NDArray
 
 from hil.controllers.observer import ObserverConfig
 from hil.controllers.observer_arrays import EkfArrays
-from hil.controllers.observer_kernels import obs_imu, obs_init, obs_pose
+from hil.controllers.observer_imu import obs_imu
+from hil.controllers.observer_kernels import obs_init, obs_pose
 from hil.controllers.observer_math import (
     P_GATE_GYRO,
     P_GATE_POSE,

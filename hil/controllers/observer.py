@@ -33,7 +33,8 @@ from hil.controllers.observer_arrays import (
     EkfArrays,
     allocate_arrays,
 )
-from hil.controllers.observer_kernels import obs_imu, obs_init, obs_pose, obs_predicted, obs_time_ns
+from hil.controllers.observer_imu import obs_imu
+from hil.controllers.observer_kernels import obs_init, obs_pose, obs_predicted, obs_time_ns
 from hil.controllers.observer_math import (
     I_BAX,
     I_BR,

@@ -33,6 +33,7 @@ __all__ = [
     "C_POSE_NONFINITE",
     "C_POSE_RESET",
     "C_POSE_TOO_OLD",
+    "NOT_REFUSED",
     "N_COUNTERS",
     "S_ABSURD",
     "S_DUPLICATE",
@@ -74,6 +75,8 @@ S_TOO_OLD = 4
 S_DUPLICATE = 5
 S_NOT_INITIALIZED = 6
 S_RESET = 7  # the pose restarted the filter (see _gated)
+NOT_REFUSED = -1
+"""What a refusal check returns for a sample it lets through (no ``S_*`` code)."""
 
 
 class EkfArrays(NamedTuple):

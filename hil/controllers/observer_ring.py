@@ -238,3 +238,21 @@ def oldest_usable(ht: IntArray, meta: IntArray, prm: FloatArray, t_ns: int) -> i
     if t_ns < head_time(ht, meta) - int(prm[P_MAX_DELAY] * 1e9):
         return -1
     return find_slot(ht, meta, t_ns)
+
+
+@njit
+def history_slot(ht: IntArray, meta: IntArray, prm: FloatArray, t_ns: int) -> tuple[int, bool]:
+    """Return ``(j, same_stamp)`` for a sample at `t_ns`, at or before the filter time.
+
+    j is the logical slot at or before `t_ns`, -1 when the sample is too old (older
+    than ``P_MAX_DELAY`` or than the oldest slot, or a new slot would go before the
+    oldest of a full ring); same_stamp whether slot j has the sample's stamp.
+    """
+    j = oldest_usable(ht, meta, prm, t_ns)
+    if j < 0:
+        return -1, False
+    k_len = ht.shape[0]
+    same_stamp = ht[slot_index(meta, k_len, j)] == t_ns
+    if not same_stamp and meta[M_COUNT] == k_len and j == 0:
+        return -1, False
+    return j, same_stamp

@@ -37,7 +37,8 @@ from hil.controllers.low_level import (
 )
 from hil.controllers.observer import ObserverConfig
 from hil.controllers.observer_arrays import EkfArrays
-from hil.controllers.observer_kernels import obs_imu, obs_init, obs_pose
+from hil.controllers.observer_imu import obs_imu
+from hil.controllers.observer_kernels import obs_init, obs_pose
 from hil.controllers.pid import DEFAULT_GAINS, PidGains
 from hil.core.arrays import BoolArray, FloatArray
 from hil.core.jit import njit

@@ -38,7 +38,8 @@ from hil.controllers.observer_arrays import (
     S_TOO_OLD,
     EkfArrays,
 )
-from hil.controllers.observer_kernels import obs_imu, obs_init, obs_pose, obs_time_ns
+from hil.controllers.observer_imu import obs_imu
+from hil.controllers.observer_kernels import obs_init, obs_pose, obs_time_ns
 from hil.controllers.observer_math import (
     P_Q_BA,
     P_Q_BR,
