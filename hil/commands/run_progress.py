@@ -11,9 +11,9 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from hil.core.arrays import FloatArray
-from hil.core.records import ControllerReady, ControllerSource, Decision, EventLevel
-from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
+from hil.core.records import ControllerReady, ControllerSource, Decision
+from hil.core.samples import PoseSample
+from hil.runtime.log_relay import RunLogRelay
 from hil.runtime.protocols import RunLog
 
 _SOURCE_WORDS = {
@@ -25,7 +25,7 @@ _SOURCE_WORDS = {
 """Short words, so that the spinner's line fits an 80-column terminal."""
 
 
-class StageLog:
+class StageLog(RunLogRelay):
     """A run log that says the run's stage through `show` and passes every record on.
 
     Args:
@@ -35,7 +35,7 @@ class StageLog:
     """
 
     def __init__(self, inner: RunLog, show: Callable[[str], None], what: str) -> None:
-        self.inner = inner
+        super().__init__(inner)
         self.show = show
         self.what = what
         self.sources: dict[ControllerSource, int] = {}
@@ -62,39 +62,11 @@ class StageLog:
             self.start_ns = sample.t_ns
         self.inner.pose(sample)
 
-    def imu(self, sample: ImuSample) -> None:
-        """Pass an IMU sample on."""
-        self.inner.imu(sample)
-
-    def estimate(self, t_ns: int, eta: FloatArray, nu: FloatArray) -> None:
-        """Pass an estimate on."""
-        self.inner.estimate(t_ns, eta, nu)
-
-    def velocity_reference(self, t_ns: int, nu_ref: FloatArray) -> None:
-        """Pass a velocity reference on."""
-        self.inner.velocity_reference(t_ns, nu_ref)
-
-    def force(self, t_ns: int, tau: FloatArray) -> None:
-        """Pass a force demand on."""
-        self.inner.force(t_ns, tau)
-
-    def thrusters(self, command: ThrusterCommand) -> None:
-        """Pass a thruster command on."""
-        self.inner.thrusters(command)
-
     def decision(self, record: Decision) -> None:
         """Pass a decision on and count it."""
         self.decisions += 1
         self.inner.decision(record)
         self._docking(record.t_ns)
-
-    def obstacles(self, layout: ObstacleLayout) -> None:
-        """Pass an obstacle layout on."""
-        self.inner.obstacles(layout)
-
-    def event(self, t_ns: int, level: EventLevel, code: str, text: str) -> None:
-        """Pass an event on."""
-        self.inner.event(t_ns, level, code, text)
 
     def controller_ready(self, record: ControllerReady) -> None:
         """Pass a controller taken on and count where it came from (full ones)."""

@@ -12,18 +12,17 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from hil.adapters.ros_telemetry import RosTelemetry
-from hil.core.arrays import FloatArray
-from hil.core.records import ControllerReady, Decision, Event, EventLevel
-from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
+from hil.core.records import Decision, Event, EventLevel
 from hil.runs.live_diagnostics import FeedView, VesselDiagnostics
 from hil.runtime.events import EventCode
+from hil.runtime.log_relay import RunLogRelay
 from hil.runtime.loop import Runtime
 from hil.runtime.protocols import RunLog
 
 __all__ = ["TelemetryLog"]
 
 
-class TelemetryLog:
+class TelemetryLog(RunLogRelay):
     """A RunLog that records into `inner` and publishes decisions and events live.
 
     Args:
@@ -36,7 +35,7 @@ class TelemetryLog:
     """
 
     def __init__(self, inner: RunLog, node: object, now_ns: Callable[[], int]) -> None:
-        self.inner = inner
+        super().__init__(inner)
         self._now_ns = now_ns
         self.telemetry = RosTelemetry(node, now_ns, self._failed)
         self.last_decision: Decision | None = None
@@ -56,45 +55,14 @@ class TelemetryLog:
         """Publish what is queued and stop publishing."""
         self.telemetry.close()
 
-    def pose(self, sample: PoseSample) -> None:
-        """Record a pose sample as received."""
-        self.inner.pose(sample)
-
-    def imu(self, sample: ImuSample) -> None:
-        """Record an IMU sample as received."""
-        self.inner.imu(sample)
-
-    def estimate(self, t_ns: int, eta: FloatArray, nu: FloatArray) -> None:
-        """Record the observer's estimate (eta (3,), nu (3,))."""
-        self.inner.estimate(t_ns, eta, nu)
-
-    def velocity_reference(self, t_ns: int, nu_ref: FloatArray) -> None:
-        """Record the velocity reference sent to the low level, (3,)."""
-        self.inner.velocity_reference(t_ns, nu_ref)
-
-    def force(self, t_ns: int, tau: FloatArray) -> None:
-        """Record the generalized force demanded by the velocity controller, (3,)."""
-        self.inner.force(t_ns, tau)
-
-    def thrusters(self, command: ThrusterCommand) -> None:
-        """Record a thruster command as sent."""
-        self.inner.thrusters(command)
-
     def decision(self, record: Decision) -> None:
         """Record one decision, then queue it for the live topic."""
         self.inner.decision(record)
         self.last_decision = record
         self.telemetry.decision(record)
 
-    def obstacles(self, layout: ObstacleLayout) -> None:
-        """Record an obstacle layout when it changes."""
-        self.inner.obstacles(layout)
-
     def event(self, t_ns: int, level: EventLevel, code: str, text: str) -> None:
         """Record an event, then queue it for the live topic."""
         self.inner.event(t_ns, level, code, text)
         self.telemetry.event(Event(t_ns, level, code, text))
 
-    def controller_ready(self, record: ControllerReady) -> None:
-        """Record a controller taken from the re-synthesis."""
-        self.inner.controller_ready(record)
