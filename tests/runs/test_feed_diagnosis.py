@@ -107,3 +107,44 @@ def test_status_and_events_count_refusals_while_poses_flow() -> None:
     assert "check the mocap sees and tracks the vessel's rigid body" in status
     assert watch.summary()[0].startswith("/voyager/measurement/pose: ")
     assert "rejected: " in watch.summary()[0]
+
+
+def test_vessel_refuses_a_ten_hertz_feed_naming_the_premise_that_covers_it(
+        tmp_path: Path) -> None:
+    """The lab's ROS driver: 10 Hz, stamped on receipt, under the default 100-Hz premise.
+
+    Poses flow and pass every per-sample check, so only the rate tells: `hil vessel`
+    measures it over the first second and refuses to claim the guarantee on it, naming
+    the premise that covers such a feed, before any command (exit 2, the refusal in the log).
+    """
+    domain = own_domain(20, 40, 3)
+    config = tmp_path / "vessel.toml"
+    config.write_text(f'scenario = "coarse"\n[ros]\ndomain_id = {domain}\n')
+    out = tmp_path / "run"
+    fix = 'or set pose_feed = "ros-10hz-receive-stamped"'
+    with FeedPublisher(domain, FeedFaults(rate_hz=10.0, delay_s=0.0)), subprocess.Popen(
+            [*HIL, "vessel", "--config", str(config), "--out", str(out)],
+            env=dds_env(domain), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+            text=True) as stack:
+        assert stack.stderr is not None
+        lines = LineTimes(stack.stderr)
+        try:
+            waiting = lines.wait_for("waiting for pose on /voyager/measurement/pose", 120.0)
+            assert waiting is not None, lines.text()
+            named = lines.wait_for(fix, 10.0)
+            assert named is not None, lines.text()
+            assert named - waiting < 5.0
+            status = stack.wait(timeout=30)
+        finally:
+            if stack.poll() is None:
+                stop(stack)
+    text = lines.text()
+    assert status == 2, text
+    assert "slower than the premise in force (pose_feed = \"qtm-100hz\"" in text
+    with BagReader(out) as reader:
+        events = [r for _, _, r in reader.records(["/hil/events"]) if isinstance(r, Event)]
+        thrusts = list(reader.records(["/hil/thrusters"]))
+    refused = [e for e in events if e.code == "pose_feed_premise"]
+    assert refused, [e.text for e in events]
+    assert fix in refused[0].text
+    assert not thrusts  # refused before the first command
