@@ -44,7 +44,7 @@ TABLE = [
     f"hil inspect {LOG} -o run.rrd",
     f"hil plot {LOG} -o run.png",
     f"hil recover {LOG}",
-    "hil record-suite --out suite",
+    "hil record-suite --list",
 ]
 # Placeholders (FILE, [--json], ...) and quoted output (`hil run: error: ...`).
 _PLACEHOLDER = re.compile(r"[A-Z]{2,}|\[|\.\.\.|\||^hil \S+:")
