@@ -109,13 +109,18 @@ def _all_viable(
     n_ranges, nx, nw = free_words.shape
     m = out.shape[1]
     npsi = out.shape[3]
+    n_max = tube_n.max()
     for h in range(n_ranges):
         if starts[h] == starts[h + 1] or columns[h, 0] > columns[h, 1]:
             continue
         for i in range(nx):
             for w in range(nw):
                 Fpad[px + i, pw + w] = free_words[h, i, w]
-        erode_free(Fpad, Fe)
+        # The tubes below read columns lo - n + 1 .. hi + n - 1 only (n <= n_max): the
+        # other rows of Fe are neither eroded nor read.
+        r0 = max(px + columns[h, 0] - n_max + 1, 0)
+        r1 = min(px + columns[h, 1] + n_max - 1, Fpad.shape[0] - 1)
+        erode_free(Fpad, Fe, r0, r1)
         for e in range(starts[h], starts[h + 1]):
             flat = order[e]
             u = flat % m
