@@ -134,8 +134,17 @@ class Outputs:
     early: U64Array
 
     @staticmethod
-    def allocate(wt_shape: tuple[int, ...], pt_shape: tuple[int, ...]) -> Outputs:
-        """Return zeroed arrays of these shapes, every page touched (GIL released)."""
+    def shapes(m: int, npsi: int, nw: int, nx: int, pads: I32Array,
+               n_planes: int) -> tuple[tuple[int, int, int, int], tuple[int, int, int, int, int]]:
+        """Return the shapes (wt, pt) of a solve of m layers, npsi x nw x nx words."""
+        px, _, pw = (int(p) for p in pads)
+        return (m, npsi, nw + 2 * pw, nx + 2 * px), (m, npsi, nw, n_planes, nx)
+
+    @staticmethod
+    def allocate(m: int, npsi: int, nw: int, nx: int, pads: I32Array,
+                 n_planes: int) -> Outputs:
+        """Return zeroed arrays for such a solve, every page touched (GIL released)."""
+        wt_shape, pt_shape = Outputs.shapes(m, npsi, nw, nx, pads, n_planes)
         wt, pt, early = (np.zeros(shape, dtype=np.uint64) for shape in (wt_shape, pt_shape,
                                                                           wt_shape))
         for array in (wt, pt, early):
@@ -178,7 +187,7 @@ class LevelSolver:
         m = viable.shape[1]
         px, _, pw = (int(p) for p in pads)
         self.pads = np.ascontiguousarray(pads, dtype=np.int32)
-        pt_shape, wt_shape = (m, npsi, nw, n_planes, nx), (m, npsi, nw + 2 * pw, nx + 2 * px)
+        wt_shape, pt_shape = Outputs.shapes(m, npsi, nw, nx, pads, n_planes)
         self._early: U64Array | None = None
         if outputs is not None and outputs.pt.shape == pt_shape and outputs.wt.shape == wt_shape:
             self._pt, self._wt, self._early = outputs.pt, outputs.wt, outputs.early

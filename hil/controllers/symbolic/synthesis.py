@@ -256,11 +256,9 @@ class Synthesizer:
             )
         yield controller
         if self._prepare and self._ready is None:
-            nx, _, npsi = self._tables.grid.shape
-            px, _, pw = (int(p) for p in self._pads)
-            m, nw = self._tables.n_inputs, (self._tables.grid.ny + 63) // 64
-            ready = Outputs.allocate((m, npsi, nw + 2 * pw, nx + 2 * px),
-                                     (m, npsi, nw, N_PLANES, nx))
+            nx, ny, npsi = self._tables.grid.shape
+            ready = Outputs.allocate(self._tables.n_inputs, npsi, (ny + 63) // 64, nx,
+                                     self._pads, N_PLANES)
             with self._reuse_lock:
                 self._ready = ready
 
