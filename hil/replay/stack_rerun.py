@@ -63,9 +63,14 @@ def tick_times(run: RunData) -> IntArray:
     return np.unique(np.concatenate([run.thrusters.t_ns, failures]))
 
 
+OUTSIDE_STOPS = frozenset({EventCode.STOPPED.value, EventCode.TIMEOUT.value})
+"""Stops that come from outside the stack: the operator's request and the run's time
+limit (a setting of the run, which the log states only as the event)."""
+
+
 def recorded_stop(run: RunData) -> Event | None:
-    """Return the run's first ``stopped`` event (a stop requested from outside), if any."""
-    return next((e for e in run.events if e.code == EventCode.STOPPED.value), None)
+    """Return the run's first stop from outside the stack (:data:`OUTSIDE_STOPS`), if any."""
+    return next((e for e in run.events if e.code in OUTSIDE_STOPS), None)
 
 
 def _infer_loop(run: RunData) -> LoopConfig:
@@ -201,8 +206,9 @@ def rerun_stack(
         solver=controllers,
         synthesis_latency_s=recorded_latency_s(run),
     )
-    # A stop from outside (SIGINT/SIGTERM on the vessel or at `hil run`) is part of the
-    # recording, not of the stack: it is requested again at the tick that recorded it.
+    # A stop from outside (SIGINT/SIGTERM on the vessel or at `hil run`, the run's time
+    # limit) is part of the recording, not of the stack: it is requested again at the tick
+    # that recorded it.
     stop = recorded_stop(run)
     for t_ns in ticks_ns:
         world.clock.sleep_until(int(t_ns))

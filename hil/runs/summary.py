@@ -108,6 +108,8 @@ class RunSummary:
             stalled loop: a broken premise, ``late_interval``); worst_late_s by how much (s).
         staying_decisions: Decisions taken on the safety controller (docking not
             winning, the vessel kept in the safety set); docking_lost the episodes.
+        layout_waits: Waits at rest for a layout that wins (obstacles move; the state
+            was outside the winning and the safety set).
         feed_rejections: On the vessel: per sensor topic with refused messages, what it
             delivered and refused by reason, with the fix (``FeedHealth.describe``).
         sources: Where the run's controllers came from (solved: the fixed point ran;
@@ -151,6 +153,7 @@ class RunSummary:
     brake_s: float | None = None
     staying_decisions: int = 0
     docking_lost: int = 0
+    layout_waits: int = 0
     feed_rejections: tuple[str, ...] = ()
     sources: ControllerSources | None = None
 
@@ -231,6 +234,8 @@ class RunSummary:
                 f"{self.staying_decisions} decisions, {self.docking_lost} episode(s)",
                 "-",
             )
+        if self.layout_waits:
+            table.add_row("waited at rest for a layout that wins", str(self.layout_waits), "-")
         table.add_row(
             "monitor: tube exits / successor misses / value not decreasing",
             f"{self.tube_exits} ({self.worst_tube_exit_m:.3f} m) / {self.successor_misses} "
@@ -332,6 +337,7 @@ def summarize_run(
         brake_s=stats.brake_s,
         staying_decisions=stats.staying_decisions,
         docking_lost=stats.docking_lost,
+        layout_waits=stats.layout_waits,
         feed_rejections=feed_rejections,
         sources=sources,
     )

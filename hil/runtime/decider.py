@@ -49,6 +49,9 @@ class Decider:
         stopping: Takes the abort a decision calls for.
         config: The decision period tau and the target's hold time.
         scenario_hash: Identifies the scenario in every decision record.
+        wait_for_layout: Obstacles move: a run that loses the winning and the safety
+            set waits at rest for a layout that wins instead of aborting
+            (:class:`~hil.runtime.progress.Progress`).
     """
 
     def __init__(
@@ -62,6 +65,7 @@ class Decider:
         stopping: Stopping,
         config: LoopConfig,
         scenario_hash: str,
+        wait_for_layout: bool = False,
     ) -> None:
         self._slot = slot
         self.chain = chain
@@ -72,7 +76,8 @@ class Decider:
         self._stopping = stopping
         self._period_s = config.decision_period_s
         self._scenario_hash = scenario_hash
-        self.progress = Progress(stats, event, config.dock_hold_s, config.decision_period_s)
+        self.progress = Progress(stats, event, config.dock_hold_s, config.decision_period_s,
+                                 wait_for_layout)
         """What the decisions say about the run: target, waits, losses."""
         self.nu_ref = np.zeros(3)
         """The velocity reference in force (u, v, r), shape (3,)."""

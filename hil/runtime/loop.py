@@ -114,7 +114,8 @@ class Runtime:
         """Why the run stops, and the braking after it."""
         chain = DecisionChain(Monitor(estimation_position_m, 1.0 / self.config.loop_hz))
         self.decider = Decider(self.slot, chain, (select, wait_select), log, self.stats,
-                               self._event, self.stopping, self.config, scenario_hash)  # fmt: skip
+                               self._event, self.stopping, self.config, scenario_hash,
+                               self.report_ages.tracks)  # fmt: skip
         """The symbolic decisions and the velocity reference they set."""
         self.decider.progress.start_ns = self._start_ns
         self._sink_failures = 0  # consecutive

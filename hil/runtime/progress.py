@@ -4,7 +4,9 @@ A decision of value 0 is in the target: the vessel holds position there and has
 docked after ``dock_hold_s``. A decision on the safety controller (docking not
 winning, the vessel able to stay safe) starts or continues a wait. A decision outside
 the winning and the safety set stops the vessel for a period and, at the run's first
-decision or a second time in a row, aborts the run.
+decision or a second time in a row, aborts the run; where obstacles move (a later
+layout may open a way again) it stops the vessel instead and waits at rest, deciding
+every period afresh, until a layout wins again or the run's time limit.
 """
 
 from __future__ import annotations
@@ -44,16 +46,21 @@ class Progress:
         event: Records the events.
         dock_hold_s: How long the target must be held to dock (s).
         period_s: The decision period (s).
+        wait_for_layout: Obstacles move: a decision outside the winning and the safety
+            set after the first stops the vessel (velocity zero under the low level,
+            held at rest) and the run waits for a layout that wins instead of aborting.
     """
 
     def __init__(
-        self, stats: RunStats, event: EventSink, dock_hold_s: float, period_s: float
+        self, stats: RunStats, event: EventSink, dock_hold_s: float, period_s: float,
+        wait_for_layout: bool = False,
     ) -> None:
         self._stats = stats
         self._event = event
         self._dock_hold_ns = dock_hold_s * NS_PER_S
         self._dock_hold_s = dock_hold_s
         self._period_s = period_s
+        self._wait_for_layout = wait_for_layout
         self.start_ns = 0
         """The run's start (ns), for the time to the target."""
         self.abort: str | None = None
@@ -83,14 +90,31 @@ class Progress:
             self._stats.staying_decisions += 1
         elif math.isinf(answer.value):
             self._not_winning(t_ns, eta_hat, answer.cell)
-        self._not_winning_before = math.isinf(answer.value) and not answer.staying
+        lost = math.isinf(answer.value) and not answer.staying
+        if self._not_winning_before and not lost and self._stats.layout_waits:
+            self._event(t_ns, EventLevel.INFO, EventCode.DOCKING_BACK,
+                        f"a layout wins again from {np.round(eta_hat, 3).tolist()}: docking on")
+        self._not_winning_before = lost
         return target
 
     def _not_winning(self, t_ns: int, eta_hat: FloatArray, cell: int) -> None:
-        """A decision outside the winning and the safety set: stop, and abort if lost."""
+        """A decision outside the winning and the safety set: stop, and abort if lost.
+
+        Where obstacles move, a run past its first decision waits at rest instead
+        (said once per wait).
+        """
         s = self._stats
         s.not_winning_decisions += 1
         state = np.round(eta_hat, 3).tolist()
+        if self._wait_for_layout and s.decisions > 0:
+            if not self._not_winning_before:
+                s.layout_waits += 1
+                self._event(
+                    t_ns, EventLevel.ERROR, EventCode.NOT_WINNING,
+                    f"state {state} outside the winning and the safety set; stopping, and "
+                    "waiting at rest for a layout that wins (obstacles move)",
+                )  # fmt: skip
+            return
         self._event(t_ns, EventLevel.ERROR, EventCode.NOT_WINNING,
                     f"state {state} outside the winning and the safety set; stopping")
         self.abort = not_winning_abort(

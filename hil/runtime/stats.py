@@ -30,7 +30,8 @@ class RunStats:
     `estimate_inconsistent_ns` the stamp of the pose at which the EKF's innovations
     broke its noise model (None: consistent; :mod:`hil.controllers.consistency`);
     `staying_decisions` the decisions taken on the safety controller (docking not
-    winning) and `docking_lost` the episodes of them.
+    winning) and `docking_lost` the episodes of them; `layout_waits` the waits at rest
+    for a layout that wins (obstacles move, the state outside both sets).
     """
 
     start_ns: int = 0
@@ -55,6 +56,7 @@ class RunStats:
     not_winning_decisions: int = 0
     staying_decisions: int = 0
     docking_lost: int = 0
+    layout_waits: int = 0
     tube_exits: int = 0
     successor_misses: int = 0
     value_not_decreasing: int = 0

@@ -168,3 +168,18 @@ def test_a_failed_check_marks_the_interval_it_names(
     assert intervals[2].status is Status.FAIL
     assert intervals[2].notes[0] == "a failed check names a time in this interval"
     assert intervals[1].t_ns < t < intervals[3].t_ns
+
+
+def test_a_run_ended_by_its_time_limit_is_re_run_to_its_end(
+    recorded: Path, cache: ScenarioCache
+) -> None:
+    """The fixture's run timed out at 12 s and braked: the time limit is the run's setting,
+    not the stack's, so the re-run stops where the recording did and brakes the same way."""
+    run = load_run(recorded)
+    timeout = [e for e in run.events if e.code == "timeout"]
+    assert len(timeout) == 1
+    report = replay_log(recorded, ReplayOptions(), cache)
+    stack = next(c for c in report.checks if c.name == "stack")
+    assert stack.status is Status.PASS, stack.findings
+    assert stack.metrics["end_reason"] == timeout[0].text
+    assert run.reference.t_ns[-1] > timeout[0].t_ns  # braking was compared too

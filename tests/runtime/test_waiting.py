@@ -11,15 +11,18 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from numpy.typing import NDArray
 
-from hil.adapters.sim import SimConfig, SimWorld
+from hil.adapters.sim import ObstacleMotion, SimConfig, SimWorld
 from hil.controllers.symbolic import Answer, Options, Select, wait_slowest
 from hil.core.records import ControllerSource
 from hil.core.samples import ObstacleLayout
+from hil.core.shapes import Rect
 from hil.runtime.assembly import low_level_for
 from hil.runtime.events import EventCode
 from hil.runtime.loop import Runtime, World
+from hil.runtime.report_age import ReportAgeBudget
 from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer
 from hil.runtime.settings import LoopConfig
 from hil.runtime.trace import MemoryLog
@@ -112,3 +115,74 @@ def test_a_lost_docking_is_waited_out_on_the_staying_inputs() -> None:
     assert chosen == [3, 3, waiting, waiting, 3, 3]
     assert [d.staying for d in log.decisions] == [False, False, True, True, False, False]
     assert controller.contracts == [False, False, True, True, False, False]
+
+
+LOST = (2, 5)
+"""Decisions [2, 5) are outside the winning and the safety set (a closed passage)."""
+
+
+class ClosingController(WaitingController):
+    """Docking, then nothing safe for three decisions (no input listed), then docking."""
+
+    def decide(
+        self,
+        state: F,
+        reference: int,
+        first: bool,
+        previous: F,
+        select: Select,
+        wait_select: Select,
+    ) -> Answer:
+        n = self.decisions
+        self.decisions += 1
+        if LOST[0] <= n < LOST[1]:
+            return Answer(0, math.inf, np.zeros(0, dtype=np.int64), False, -1, None)
+        return Answer(0, 3.0, np.array([3], dtype=np.int64), False, 3, None)
+
+
+@pytest.mark.parametrize("moving", [True, False])
+def test_a_closed_passage_is_waited_out_at_rest_only_where_obstacles_move(moving: bool) -> None:
+    """Obstacles that move may open the way again: the vessel stops and waits, deciding
+    afresh every period, and docks on; fixed ones cannot, so the second loss aborts."""
+    n_decisions = 7
+    # A far obstacle reported every second (a zero motion): reports stay fresh.
+    far = Rect(-3.0, -2.5, 2.0, 2.5)
+    world = SimWorld(SimConfig(start=START, seed=3, obstacles=(far,),
+                               motions=(ObstacleMotion(0, (0.0, 0.0), 0.0, 100.0),)),
+                     max_duration_s=2.0 * n_decisions + 5.0)  # fmt: skip
+    controller = ClosingController()
+    loop = LoopConfig(
+        resynthesis_period_s=None, max_duration_s=2.0 * n_decisions - 0.025,
+        observer_settle_s=0.0,
+    )  # fmt: skip
+    log = MemoryLog()
+    runtime = Runtime(
+        World(world.clock, world.pose, world.imu, world.obstacles, world.thrusters),
+        TrueVelocity(world), low_level_for(loop.loop_hz),
+        Resynthesizer(lambda layout, age: controller, ResynthesisMode.INLINE),
+        lambda options: 0, log, loop, report_ages=ReportAgeBudget(1.0, tracks=moving),
+    )  # fmt: skip
+    stats = runtime.run()
+
+    codes = log.event_codes()
+    if not moving:
+        assert stats.aborted
+        assert "still outside the winning set" in stats.end_reason
+        assert stats.decisions == LOST[0] + 2
+        assert stats.layout_waits == 0
+        return
+    assert not stats.aborted
+    assert stats.decisions == n_decisions
+    assert stats.not_winning_decisions == LOST[1] - LOST[0]
+    assert stats.layout_waits == 1
+    assert codes.count(EventCode.NOT_WINNING.value) == 1  # said once per wait
+    assert codes.count(EventCode.DOCKING_BACK.value) == 1
+    decisions = log.decisions
+    assert [d.chosen_index for d in decisions] == [3, 3, -1, -1, -1, 3, 3]
+    # Every decision after a stop is a first one, from the estimated velocity.
+    assert [d.first for d in decisions[LOST[0] + 1:]] == [True] * (n_decisions - LOST[0] - 1)
+    # The vessel was brought to rest while waiting: velocity zero flown under the low level.
+    t_back = decisions[LOST[1]].t_ns
+    refs = [r for t, r in log.velocity_references if decisions[LOST[0]].t_ns <= t < t_back]
+    assert refs
+    assert all(np.all(r == 0.0) for r in refs)
