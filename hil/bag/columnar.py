@@ -28,7 +28,7 @@ from numpy.typing import NDArray
 
 from hil.bag import topics
 from hil.bag.errors import RecordValueError
-from hil.bag.messages import DEFAULT_LAB_FRAME, LabFrame
+from hil.bag.lab_frame import DEFAULT_LAB_FRAME, LabFrame
 from hil.core.arrays import FloatArray
 from hil.core.azimuth import azimuth_vectors
 from hil.core.clock import NS_PER_S

@@ -18,7 +18,8 @@ import numpy as np
 from hil.bag import topics
 from hil.bag import typestore as ts
 from hil.bag.errors import RecordValueError
-from hil.bag.messages import LabFrame, Record
+from hil.bag.lab_frame import LabFrame
+from hil.bag.messages import Record
 from hil.core.arena_frame import ArenaTransform
 from hil.core.clock import NS_PER_S
 from hil.core.geometry import quaternion_yaw

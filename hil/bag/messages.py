@@ -11,7 +11,8 @@ payload with rosbags and with the independent ``mcap_ros2`` decoder.
 Reading them back is :mod:`hil.bag.decoding`.
 
 Where each goes (:mod:`hil.bag.topics`): a pose to the lab's topic in the lab's frame
-(mapped back through the :class:`LabFrame`'s transform when it is an arena pose) and to
+(mapped back through the :class:`~hil.bag.lab_frame.LabFrame`'s transform when it is an
+arena pose) and to
 ``/hil/pose`` in the arena; the velocity and force commands unstamped to the lab's
 topics and stamped to ``/hil/...``; the estimate to ``/hil/odom``.
 
@@ -27,7 +28,6 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from functools import cache
 from typing import Any
 
@@ -36,7 +36,7 @@ import numpy as np
 from hil.bag import topics
 from hil.bag import typestore as ts
 from hil.bag.errors import RecordValueError
-from hil.core.arena_frame import ArenaTransform
+from hil.bag.lab_frame import DEFAULT_LAB_FRAME, LabFrame
 from hil.core.azimuth import azimuth_vector
 from hil.core.clock import NS_PER_S
 from hil.core.geometry import yaw_quaternion
@@ -90,28 +90,6 @@ RECORD_TYPES: tuple[type, ...] = (
 Encoded = list[tuple[str, bytes]]
 
 _ENCAPSULATION = b"\x00\x01\x00\x00"  # CDR, little endian
-
-
-@dataclass(frozen=True, slots=True)
-class LabFrame:
-    """The lab's pose frame: how hil's arena poses map back to what the lab's topic holds.
-
-    Attributes:
-        transform: Lab world and mocap body to the arena and the vessel's body origin
-            (the vessel config's ``[ros.transform]``; identity in simulation by default).
-        frame_id: Frame id of the lab's poses (``[ros] pose_frame_id``, ``world_ned``).
-    """
-
-    transform: ArenaTransform = field(default_factory=ArenaTransform)
-    frame_id: str = topics.LAB_FRAME
-
-    def __post_init__(self) -> None:
-        if not self.frame_id or "\x00" in self.frame_id:
-            raise RecordValueError(f"lab pose frame id {self.frame_id!r} is empty or has a NUL")
-
-
-DEFAULT_LAB_FRAME = LabFrame()
-"""Identity transform, ``world_ned``: what simulation records without a vessel config."""
 
 
 @cache

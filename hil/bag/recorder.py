@@ -44,8 +44,9 @@ from hil.bag import topics
 from hil.bag import typestore as ts
 from hil.bag.columnar import BULK_ENCODERS, Block, encode_poses
 from hil.bag.errors import RecorderClosedError, RecorderError, RecordValueError
+from hil.bag.lab_frame import LabFrame
 from hil.bag.mcap_writer import McapChunkWriter
-from hil.bag.messages import Encoded, LabFrame, Record, encode, encode_tf_static
+from hil.bag.messages import Encoded, Record, encode, encode_tf_static
 from hil.bag.metadata import (
     RECORD_NAME,
     FileEntry,

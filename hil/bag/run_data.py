@@ -51,6 +51,7 @@ from hil.bag import topics
 from hil.bag.columns import to_columns
 from hil.bag.decoding import lab_frame_from_tf, to_record
 from hil.bag.errors import BagError, FrameError, NotAHilRunError, OldLogFormatError
+from hil.bag.lab_frame import LabFrame
 from hil.bag.lab_streams import (
     LAB_POSE_FRAME,
     UNSTAMPED_TYPES,
@@ -58,7 +59,7 @@ from hil.bag.lab_streams import (
     thrusters_from_wrenches,
     unstamped_values,
 )
-from hil.bag.messages import LabFrame, Record
+from hil.bag.messages import Record
 from hil.bag.reader import BagInfo, BagReader, SkippedMessage
 from hil.bag.repairs import Repair, RepairKind, tidy
 from hil.bag.run_info import RunInfo

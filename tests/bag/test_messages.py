@@ -13,7 +13,8 @@ from hil.bag import topics
 from hil.bag import typestore as ts
 from hil.bag.decoding import to_record
 from hil.bag.errors import RecordValueError
-from hil.bag.messages import DEFAULT_LAB_FRAME, Record, encode
+from hil.bag.lab_frame import DEFAULT_LAB_FRAME
+from hil.bag.messages import Record, encode
 from hil.core.records import Decision, Event, EventLevel, StateEstimate
 from hil.core.samples import Frame, PoseSample, ThrusterCommand
 from tests.bag.bag_streams import one_of_each
