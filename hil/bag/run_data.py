@@ -47,6 +47,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
+from hil.bag import field_table as ft
 from hil.bag import topics
 from hil.bag.columns import to_columns
 from hil.bag.decoding import lab_frame_from_tf, to_record
@@ -75,14 +76,15 @@ _LEGACY_READY = re.compile(r"controller v(\d+)\b( early)?(?: in ([0-9.eE+-]+) s)
 _CONTROLLER_READY = "controller_ready"
 
 FIELDS: dict[str, tuple[str, ...]] = {
-    topics.POSE: ("x_m", "y_m", "yaw_rad"),
-    topics.IMU: ("accel_x_mps2", "accel_y_mps2", "yaw_rate_radps"),
-    topics.ODOM: ("x_m", "y_m", "yaw_rad", "surge_mps", "sway_mps", "yaw_rate_radps"),
-    topics.VELOCITY_COMMAND: ("surge_mps", "sway_mps", "yaw_rate_radps"),
-    topics.FORCE_COMMAND: ("surge_n", "sway_n", "yaw_nm"),
-    topics.THRUSTERS: ("tunnel", "port", "starboard", "port_angle_rad", "starboard_angle_rad"),
+    topics.POSE: ft.POSE.names,
+    topics.IMU: ft.IMU.names,
+    topics.ODOM: ft.ODOM.names,
+    topics.VELOCITY_COMMAND: ft.TWIST_STAMPED.names,
+    topics.FORCE_COMMAND: ft.WRENCH_STAMPED.names,
+    topics.THRUSTERS: ft.THRUSTERS.names,
 }
-"""Topic -> the sample fields kept, in column order: the one field table of a run."""
+"""Topic -> the sample fields kept, in column order: the field table's
+(:mod:`hil.bag.field_table`) for each stream."""
 
 RECORD_TOPICS = (topics.DECISION, topics.OBSTACLES, topics.EVENTS, topics.CONTROLLERS)
 """Topics read as records (variable size)."""
