@@ -74,6 +74,36 @@ class FixedLayout:
         return tuple(name for name, _ in self.fields)
 
 
+def _under(prefix: str, fields: tuple[tuple[str, str], ...]) -> tuple[tuple[str, str], ...]:
+    """Return `fields` with their paths under the field `prefix` (a message held inside)."""
+    return tuple((name, f"{prefix}.{path}") for name, path in fields)
+
+
+TWIST = FixedLayout(
+    topics.TWIST_TYPE,
+    VelocityReference,
+    (("surge_mps", "linear.x"), ("sway_mps", "linear.y"), ("yaw_rate_radps", "angular.z")),
+)
+"""The lab's unstamped Twist (the velocity command): linear.x = u, linear.y = v, angular.z = r."""
+
+WRENCH = FixedLayout(
+    topics.WRENCH_TYPE,
+    ForceCommand,
+    (("surge_n", "force.x"), ("sway_n", "force.y"), ("yaw_nm", "torque.z")),
+)
+"""The lab's unstamped Wrench (force and per-thruster commands): force.x = X, force.y = Y,
+torque.z = N."""
+
+TWIST_STAMPED = FixedLayout(
+    topics.TWIST_STAMPED_TYPE, VelocityReference, _under("twist", TWIST.fields)
+)
+"""TwistStamped: nu_ref, its twist as :data:`TWIST`."""
+
+WRENCH_STAMPED = FixedLayout(
+    topics.WRENCH_STAMPED_TYPE, ForceCommand, _under("wrench", WRENCH.fields)
+)
+"""WrenchStamped: tau, its wrench as :data:`WRENCH`."""
+
 POSE = FixedLayout(
     topics.POSE_TYPE,
     PoseSample,
@@ -82,6 +112,12 @@ POSE = FixedLayout(
     frame_from_header=True,
 )  # fmt: skip
 """PoseWithCovarianceStamped: the pose (covariance zero)."""
+
+ODOM = FixedLayout(
+    topics.ODOM_TYPE, StateEstimate, POSE.fields + _under("twist.twist", TWIST.fields)
+)
+"""nav_msgs/Odometry: the estimate, its pose as :data:`POSE`'s in the header's frame, its
+twist as :data:`TWIST` in the child's (covariances zero)."""
 
 IMU = FixedLayout(
     topics.IMU_TYPE,
@@ -92,30 +128,6 @@ IMU = FixedLayout(
 )  # fmt: skip
 """sensor_msgs/Imu: no orientation (identity, covariance[0] = -1: REP 145)."""
 
-ODOM = FixedLayout(
-    topics.ODOM_TYPE,
-    StateEstimate,
-    (("x_m", "pose.pose.position.x"), ("y_m", "pose.pose.position.y"),
-     ("yaw_rad", "pose.pose.orientation"), ("surge_mps", "twist.twist.linear.x"),
-     ("sway_mps", "twist.twist.linear.y"), ("yaw_rate_radps", "twist.twist.angular.z")),
-)  # fmt: skip
-"""nav_msgs/Odometry: the estimate, pose in the header's frame, twist in the child's."""
-
-TWIST_STAMPED = FixedLayout(
-    topics.TWIST_STAMPED_TYPE,
-    VelocityReference,
-    (("surge_mps", "twist.linear.x"), ("sway_mps", "twist.linear.y"),
-     ("yaw_rate_radps", "twist.angular.z")),
-)  # fmt: skip
-"""TwistStamped: nu_ref, linear.x = u, linear.y = v, angular.z = r."""
-
-WRENCH_STAMPED = FixedLayout(
-    topics.WRENCH_STAMPED_TYPE,
-    ForceCommand,
-    (("surge_n", "wrench.force.x"), ("sway_n", "wrench.force.y"), ("yaw_nm", "wrench.torque.z")),
-)
-"""WrenchStamped: tau, force.x = X, force.y = Y, torque.z = N."""
-
 THRUSTERS = FixedLayout(
     ts.THRUSTER_COMMANDS,
     ThrusterCommand,
@@ -123,20 +135,6 @@ THRUSTERS = FixedLayout(
      ("port_angle_rad", "port_angle"), ("starboard_angle_rad", "starboard_angle")),
 )  # fmt: skip
 """hil_msgs/ThrusterCommands: every thruster command and azimuth angle, lossless."""
-
-TWIST = FixedLayout(
-    topics.TWIST_TYPE,
-    VelocityReference,
-    (("surge_mps", "linear.x"), ("sway_mps", "linear.y"), ("yaw_rate_radps", "angular.z")),
-)
-"""The lab's unstamped Twist (the velocity command): as :data:`TWIST_STAMPED`."""
-
-WRENCH = FixedLayout(
-    topics.WRENCH_TYPE,
-    ForceCommand,
-    (("surge_n", "force.x"), ("sway_n", "force.y"), ("yaw_nm", "torque.z")),
-)
-"""The lab's unstamped Wrench (force and per-thruster commands): as :data:`WRENCH_STAMPED`."""
 
 STAMPED_LAYOUTS = (POSE, IMU, ODOM, TWIST_STAMPED, WRENCH_STAMPED, THRUSTERS)
 """The layouts with a header: read as records and as columns."""
