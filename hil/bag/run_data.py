@@ -70,6 +70,7 @@ from hil.core.qtm_sample import QtmSample
 from hil.core.records import ControllerReady, ControllerSource, Decision, Event
 from hil.core.samples import ObstacleLayout
 from hil.core.shapes import Rect
+from hil.core.timeline import in_force
 from hil.core.tracking import TrackingSeries, tracking_error
 
 _LEGACY_READY = re.compile(r"controller v(\d+)\b( early)?(?: in ([0-9.eE+-]+) s)?")
@@ -292,15 +293,17 @@ class RunData:
             c for c in self.controllers_ready() if c.complete and math.isfinite(c.seconds)
         )
 
+    def layout_in_force(self, t_ns: int) -> Layout | None:
+        """Return the newest layout observed at or before `t_ns`; None before the first.
+
+        The rule of :func:`hil.core.timeline.in_force` over the layouts (in time order).
+        """
+        k = int(in_force([layout.t_ns for layout in self.layouts], t_ns)[0])
+        return self.layouts[k] if k >= 0 else None
+
     def layout_at(self, t_ns: int) -> Layout | None:
-        """Return the newest layout observed at or before `t_ns` (else the first, or None)."""
-        if not self.layouts:
-            return None
-        best = self.layouts[0]
-        for layout in self.layouts:
-            if layout.t_ns <= t_ns:
-                best = layout
-        return best
+        """Return the layout in force at `t_ns` (else the first, or None without any)."""
+        return self.layout_in_force(t_ns) or (self.layouts[0] if self.layouts else None)
 
 
 _T = TypeVar("_T")
