@@ -31,8 +31,7 @@ import heapq
 from collections.abc import Collection, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path, PurePath
-from types import TracebackType
-from typing import Any, Literal, Self
+from typing import Any, Literal
 
 from rosbags.typesys.store import Typestore
 
@@ -66,6 +65,7 @@ from hil.bag.typestore import (
     register_hil_types,
     register_new,
 )
+from hil.core.lifecycle import OpenedByWith
 
 OnError = Literal["raise", "skip"]
 
@@ -189,7 +189,7 @@ def _check_exists(path: Path) -> None:
         raise BagNotFoundError(f"{str(path)!r} does not exist")
 
 
-class BagReader:
+class BagReader(OpenedByWith):
     """Read a bag directory or a bare MCAP/sqlite3 file; never modifies it.
 
     Args:
@@ -361,18 +361,6 @@ class BagReader:
         if self._files is None or self._info is None or self._store is None:
             raise ReplayError(f"reader for {str(self.path)!r} is not open")
         return self._files, self._info, self._store
-
-    def __enter__(self) -> Self:
-        self.open()
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
     # ------------------------------------------------------------ reading
 
