@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from types import TracebackType
 from typing import Self
 
 
@@ -26,11 +25,6 @@ class OpenedByWith:
         self.open()
         return self
 
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        """Close."""
+    def __exit__(self, *exc: object) -> None:
+        """Close (`exc`: the block's exception, if any, which goes on)."""
         self.close()
