@@ -18,7 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hil.bag.errors import RecordValueError
-from hil.core.clock import NS_PER_S
+from hil.core.clock import NS_PER_S, stamp_fields
 
 ENCAPSULATION = b"\x00\x01\x00\x00"
 """CDR, little endian, no options."""
@@ -58,8 +58,7 @@ def stamp(t_ns: int) -> tuple[int, int]:
     """
     if t_ns < 0 or t_ns >= MAX_T_NS:
         raise RecordValueError(f"time {t_ns!r} ns does not fit a ROS stamp (int32 seconds >= 0)")
-    sec, nsec = divmod(int(t_ns), NS_PER_S)
-    return sec, nsec
+    return stamp_fields(t_ns)
 
 
 def check_stamps(t_ns: NDArray[np.int64]) -> None:

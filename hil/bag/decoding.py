@@ -22,7 +22,7 @@ from hil.bag.errors import RecordValueError
 from hil.bag.lab_frame import LabFrame
 from hil.bag.messages import Record
 from hil.core.arena_frame import ArenaTransform
-from hil.core.clock import NS_PER_S
+from hil.core.clock import stamp_to_ns
 from hil.core.geometry import quaternion_yaw
 from hil.core.qtm_sample import QtmSample
 from hil.core.records import (
@@ -39,10 +39,6 @@ from hil.core.samples import (
     obstacle_rect,
 )
 from hil.core.shapes import Rect
-
-
-def _t_ns(header: Any) -> int:
-    return int(header.stamp.sec) * NS_PER_S + int(header.stamp.nanosec)
 
 
 def _yaw(q: Any) -> float:
@@ -63,7 +59,8 @@ def _from_message(layout: ft.FixedLayout) -> Callable[[Any], Record]:
                     f"pose frame_id {msg.header.frame_id!r} is not one of "
                     f"{[f.value for f in Frame]!r}"
                 ) from None
-        return ft.build(layout, _t_ns(msg.header), ft.message_fields(layout, msg), frame)
+        t_ns = stamp_to_ns(msg.header.stamp)
+        return ft.build(layout, t_ns, ft.message_fields(layout, msg), frame)
 
     return decode
 
@@ -73,7 +70,7 @@ def _decision(msg: Any) -> Decision:
     if inputs.size % 3:
         raise RecordValueError(f"decision safe_inputs has {inputs.size} values, not k x 3")
     return Decision(
-        t_ns=_t_ns(msg.header),
+        t_ns=stamp_to_ns(msg.header.stamp),
         state=(float(msg.x), float(msg.y), float(msg.psi)),
         cell=int(msg.cell),
         value=float(msg.value),
@@ -117,7 +114,7 @@ def _rectangle(msg: Any) -> Rect:
 
 
 def _layout(msg: Any) -> ObstacleLayout:
-    return ObstacleLayout(_t_ns(msg.header), tuple(_rectangle(p) for p in msg.real))
+    return ObstacleLayout(stamp_to_ns(msg.header.stamp), tuple(_rectangle(p) for p in msg.real))
 
 
 def _event(msg: Any) -> Event:
@@ -125,7 +122,7 @@ def _event(msg: Any) -> Event:
         level = EventLevel(int(msg.level))
     except ValueError:
         raise RecordValueError(f"event level {int(msg.level)!r} is not a known level") from None
-    return Event(_t_ns(msg.header), level, str(msg.code), str(msg.text))
+    return Event(stamp_to_ns(msg.header.stamp), level, str(msg.code), str(msg.text))
 
 
 def _controller_ready(msg: Any) -> ControllerReady:
@@ -134,7 +131,7 @@ def _controller_ready(msg: Any) -> ControllerReady:
     except ValueError:
         raise RecordValueError(f"controller source {int(msg.source)!r} is not known") from None
     return ControllerReady(
-        _t_ns(msg.header),
+        stamp_to_ns(msg.header.stamp),
         int(msg.controller_version),
         float(msg.seconds),
         source,
@@ -146,7 +143,7 @@ def _controller_ready(msg: Any) -> ControllerReady:
 
 def _qtm(msg: Any) -> QtmSample:
     return QtmSample(
-        _t_ns(msg.header),
+        stamp_to_ns(msg.header.stamp),
         int(msg.qtm_timestamp_us),
         int(msg.frame_number),
         int(msg.body_index),
