@@ -21,6 +21,7 @@ from hil.bag.run_data import RunData, Series
 from hil.core.arrays import FloatArray, IntArray
 from hil.core.clock import SimClock
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, ThrusterCommand
+from hil.core.timeline import in_force
 
 THRUSTER_FAILURE_CODE = "thruster_failure"
 """Event code the runtime logs when a thruster command cannot be delivered."""
@@ -119,7 +120,7 @@ class LogObstacleSource:
 
     def latest(self) -> ObstacleLayout:
         """Return the newest layout recorded at or before the clock's time."""
-        i = int(np.searchsorted(self._t_ns, self._clock.now_ns(), side="right")) - 1
+        i = int(in_force(self._t_ns, self._clock.now_ns())[0])
         return self._layouts[max(i, 0)]
 
 

@@ -42,14 +42,12 @@ from hil.adapters.ros_context import (
 from hil.adapters.ros_messages import (
     fill_imu_msg,
     fill_pose_msg,
-    fill_stamp,
     imu_from_msg,
     pose_from_msg,
-    stamp_to_ns,
     thruster_command_from_components,
     thruster_wrench_components,
 )
-from hil.core.clock import NS_PER_S
+from hil.core.clock import NS_PER_S, fill_stamp, stamp_to_ns
 from hil.core.samples import ImuSample, ObstacleLayout, PoseSample, SampleError, ThrusterCommand
 
 # The message conversions live in ros_messages.py, starting and stopping rclpy in

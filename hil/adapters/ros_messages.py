@@ -10,18 +10,8 @@ from typing import Any
 
 from hil.adapters.frames import ArenaTransform, quaternion_from_yaw, yaw_from_quaternion
 from hil.core.azimuth import azimuth_command, azimuth_vector
-from hil.core.clock import NS_PER_S
+from hil.core.clock import fill_stamp, stamp_to_ns
 from hil.core.samples import Frame, ImuSample, PoseSample, ThrusterCommand
-
-
-def stamp_to_ns(stamp: Any) -> int:
-    """Return a builtin_interfaces/Time as integer nanoseconds."""
-    return int(stamp.sec) * NS_PER_S + int(stamp.nanosec)
-
-
-def fill_stamp(stamp: Any, t_ns: int) -> None:
-    """Write `t_ns` into a builtin_interfaces/Time in place."""
-    stamp.sec, stamp.nanosec = divmod(int(t_ns), NS_PER_S)
 
 
 def pose_from_msg(msg: Any, transform: ArenaTransform) -> PoseSample:

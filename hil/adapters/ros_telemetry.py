@@ -39,7 +39,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from hil.adapters.ros_messages import fill_stamp
+from hil.core.clock import fill_stamp
 from hil.core.codec import to_jsonable
 from hil.core.records import Decision, Event
 

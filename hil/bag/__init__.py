@@ -1,8 +1,11 @@
 """The bag format (layer 5): rosbag2 MCAP recording, reading, recovery, loading a run.
 
+The fixed-layout messages' one field table is :mod:`~hil.bag.field_table`, their CDR
+bytes (alignment, strings, stamps) :mod:`~hil.bag.cdr`; every codec below reads both.
 Writing: :mod:`~hil.bag.messages` (records as ROS 2 messages), :mod:`~hil.bag.columnar`
-(bulk encoding), :mod:`~hil.bag.mcap_writer`, :mod:`~hil.bag.recorder`,
-:mod:`~hil.bag.metadata`, :mod:`~hil.bag.run_info` (what produced a run). Reading:
+(bulk encoding), :mod:`~hil.bag.lab_frame` (the lab's pose frame),
+:mod:`~hil.bag.mcap_writer`, :mod:`~hil.bag.recorder`, :mod:`~hil.bag.metadata`,
+:mod:`~hil.bag.run_info` (what produced a run). Reading:
 :mod:`~hil.bag.storage`, :mod:`~hil.bag.reader`, :mod:`~hil.bag.decoding` (messages
 back into records), :mod:`~hil.bag.columns` (a topic as arrays),
 :mod:`~hil.bag.recover`, and :mod:`~hil.bag.run_data`, the one loader of a recorded

@@ -3,9 +3,10 @@
 For analysis and plotting (tracking error over a run, Rerun's ``send_columns``)
 a topic is more useful as arrays than as a stream of samples. Fixed-layout
 payloads of equal length are decoded in one pass: the payloads are stacked into
-an ``(N, L)`` byte matrix and the float64 block viewed in place. Payloads of
-another layout (a foreign frame id of varying length, big-endian CDR) fall back
-to per-message decoding, with the same result.
+an ``(N, L)`` byte matrix and the float64 block viewed in place, its fields where the
+field table (:mod:`hil.bag.field_table`) puts them. Payloads of another layout (a
+foreign frame id of varying length, big-endian CDR) fall back to per-message
+decoding, with the same result.
 """
 
 from __future__ import annotations
@@ -17,13 +18,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from hil.bag import topics
-from hil.bag import typestore as ts
+from hil.bag import cdr
+from hil.bag import field_table as ft
 from hil.bag.errors import MessageDecodeError
 from hil.bag.messages import Record
 from hil.bag.storage import RawMessage
 from hil.core.arrays import FloatArray
-from hil.core.geometry import quaternion_yaws
 
 
 @dataclass(frozen=True, slots=True)
@@ -47,89 +47,32 @@ class Columns:
         return np.column_stack([self.fields[name] for name in names])
 
 
-@dataclass(frozen=True, slots=True)
-class _Spec:
-    """Where the fields of one message type sit among its float64 values."""
-
-    n_values: int
-    fields: tuple[tuple[str, int], ...]
-    yaw_from: int | None = None  # index of the quaternion x when the type has a yaw
-    child_frame: bool = False
-
-
-_SPECS: dict[str, _Spec] = {
-    topics.POSE_TYPE: _Spec(43, (("x_m", 0), ("y_m", 1)), yaw_from=3),
-    topics.IMU_TYPE: _Spec(
-        37, (("accel_x_mps2", 25), ("accel_y_mps2", 26), ("yaw_rate_radps", 15))
-    ),
-    topics.ODOM_TYPE: _Spec(
-        85,
-        (("x_m", 0), ("y_m", 1), ("surge_mps", 43), ("sway_mps", 44), ("yaw_rate_radps", 48)),
-        yaw_from=3,
-        child_frame=True,
-    ),
-    topics.TWIST_STAMPED_TYPE: _Spec(6, (("surge_mps", 0), ("sway_mps", 1), ("yaw_rate_radps", 5))),
-    topics.WRENCH_STAMPED_TYPE: _Spec(6, (("surge_n", 0), ("sway_n", 1), ("yaw_nm", 5))),
-    ts.THRUSTER_COMMANDS: _Spec(
-        5,
-        (
-            ("tunnel", 0),
-            ("port", 1),
-            ("starboard", 2),
-            ("port_angle_rad", 3),
-            ("starboard_angle_rad", 4),
-        ),
-    ),
-}
-
-COLUMN_TYPES: frozenset[str] = frozenset(_SPECS)
+COLUMN_TYPES: frozenset[str] = ft.STAMPED_TYPES
 """Message types :func:`to_columns` reads."""
 
 
-def _field_names(spec: _Spec) -> tuple[str, ...]:
-    names = tuple(name for name, _ in spec.fields)
-    return (*names[:2], "yaw_rad", *names[2:]) if spec.yaw_from is not None else names
-
-
-def _values_offset(first: bytes, spec: _Spec) -> int | None:
-    """Byte offset of the float64 block in `first`, or None if not little-endian CDR."""
-    if len(first) < 16 or first[1] != 1:
-        return None
-    offset = 16 + int.from_bytes(first[12:16], "little")
-    if spec.child_frame:
-        offset += (-(offset - 4)) % 4
-        offset += 4 + int.from_bytes(first[offset : offset + 4], "little")
-    offset += (-(offset - 4)) % 8
-    return offset if len(first) == offset + 8 * spec.n_values else None
-
-
-def _frame_id(data: bytes) -> str:
-    length = int.from_bytes(data[12:16], "little")
-    return data[16 : 16 + length - 1].decode("utf-8", "replace")
-
-
 def _bulk(
-    raws: Sequence[RawMessage], spec: _Spec
+    raws: Sequence[RawMessage], layout: ft.FixedLayout
 ) -> tuple[NDArray[np.int64], dict[str, FloatArray]] | None:
     """Decode equal-layout payloads (same length, header and frame ids) in one pass."""
     first = raws[0].data
-    offset = _values_offset(first, spec)
-    if offset is None:
+    off = ft.offsets(layout)
+    head = cdr.parse_header(first, off.child_frame)
+    if head is None or len(first) != head.values_offset + 8 * off.n_values:
         return None
-    size, head, frames = len(first), first[:4], first[12:offset]
+    size, offset = len(first), head.values_offset
+    encapsulation, frames = first[: cdr.DATA_START], first[cdr.FRAME_OFFSET : offset]
     if not all(
-        len(r.data) == size and r.data[12:offset] == frames and r.data[:4] == head for r in raws
+        len(r.data) == size
+        and r.data[cdr.FRAME_OFFSET : offset] == frames
+        and r.data[: cdr.DATA_START] == encapsulation
+        for r in raws
     ):
         return None
     matrix = np.frombuffer(b"".join(r.data for r in raws), dtype=np.uint8).reshape(len(raws), size)
-    stamp = np.ascontiguousarray(matrix[:, 4:12]).view("<u4")
-    t_ns = stamp[:, 0].view("<i4").astype(np.int64) * 1_000_000_000 + stamp[:, 1]
+    t_ns = cdr.stamps_ns(matrix[:, cdr.STAMP_OFFSET : cdr.FRAME_OFFSET])
     values = np.ascontiguousarray(matrix[:, offset:]).view("<f8")
-    fields = {name: values[:, i].copy() for name, i in spec.fields}
-    if spec.yaw_from is not None:
-        x, y, z, w = (values[:, spec.yaw_from + k] for k in range(4))
-        fields["yaw_rad"] = quaternion_yaws(x, y, z, w)
-    return t_ns, fields
+    return t_ns, ft.from_values(layout, values)
 
 
 def to_columns(
@@ -152,21 +95,21 @@ def to_columns(
     Raises:
         MessageDecodeError: The type has no columns, or a message does not decode.
     """
-    spec = _SPECS.get(msgtype)
-    if spec is None:
+    layout = ft.LAYOUTS.get(msgtype)
+    if layout is None or msgtype not in COLUMN_TYPES:
         raise MessageDecodeError(
             f"topic {topic!r} of type {msgtype!r} has no columns; "
             f"types with columns: {sorted(COLUMN_TYPES)!r}"
         )
-    names = _field_names(spec)
+    names = layout.names
     if not raws:
         return Columns(topic, np.zeros(0, np.int64), {n: np.zeros(0) for n in names})
-    bulk = _bulk(raws, spec)
+    bulk = _bulk(raws, layout)
     if bulk is not None:  # every payload carries the first one's frame ids
         t_ns, fields = bulk
         if all(np.isfinite(v).all() for v in fields.values()):
-            return Columns(topic, t_ns, {n: fields[n] for n in names}, _frame_id(raws[0].data))
-    frame_ids = {_frame_id(r.data) for r in raws if len(r.data) >= 16}
+            return Columns(topic, t_ns, fields, cdr.frame_id(raws[0].data))
+    frame_ids = {cdr.frame_id(r.data) for r in raws if len(r.data) >= cdr.FRAME_OFFSET + 4}
     frame_id = next(iter(frame_ids), "")
     if len(frame_ids) > 1:
         raise MessageDecodeError(

@@ -3,24 +3,26 @@
 :func:`to_record` turns a decoded message (a rosbags message object or anything
 with the same attribute names) back into a sample or record; :data:`FAST_DECODERS`
 go straight from a fixed-layout little-endian CDR payload to a sample, skipping
-rosbags. Conventions are those of :mod:`hil.bag.messages`.
+rosbags. Both read the fixed-layout types from the field table
+(:mod:`hil.bag.field_table`); conventions are those of :mod:`hil.bag.messages`.
 """
 
 from __future__ import annotations
 
 import struct
 from collections.abc import Callable
-from functools import cache
 from typing import Any
 
 import numpy as np
 
-from hil.bag import topics
+from hil.bag import cdr, topics
+from hil.bag import field_table as ft
 from hil.bag import typestore as ts
 from hil.bag.errors import RecordValueError
-from hil.bag.messages import LabFrame, Record
+from hil.bag.lab_frame import LabFrame
+from hil.bag.messages import Record
 from hil.core.arena_frame import ArenaTransform
-from hil.core.clock import NS_PER_S
+from hil.core.clock import stamp_to_ns
 from hil.core.geometry import quaternion_yaw
 from hil.core.qtm_sample import QtmSample
 from hil.core.records import (
@@ -29,28 +31,14 @@ from hil.core.records import (
     Decision,
     Event,
     EventLevel,
-    ForceCommand,
-    StateEstimate,
 )
 from hil.core.samples import (
     Frame,
-    ImuSample,
     ObstacleLayout,
-    PoseSample,
     SampleError,
-    ThrusterCommand,
-    VelocityReference,
     obstacle_rect,
 )
 from hil.core.shapes import Rect
-
-
-def _pad(offset: int, align: int) -> int:
-    return (-offset) % align
-
-
-def _t_ns(header: Any) -> int:
-    return int(header.stamp.sec) * NS_PER_S + int(header.stamp.nanosec)
 
 
 def _yaw(q: Any) -> float:
@@ -58,63 +46,23 @@ def _yaw(q: Any) -> float:
     return quaternion_yaw(float(q.x), float(q.y), float(q.z), float(q.w))
 
 
-def _pose(msg: Any) -> PoseSample:
-    try:
-        frame = Frame(msg.header.frame_id)
-    except ValueError:
-        raise SampleError(
-            f"pose frame_id {msg.header.frame_id!r} is not one of {[f.value for f in Frame]!r}"
-        ) from None
-    p = msg.pose.pose
-    return PoseSample(
-        _t_ns(msg.header), float(p.position.x), float(p.position.y), _yaw(p.orientation), frame
-    )
+def _from_message(layout: ft.FixedLayout) -> Callable[[Any], Record]:
+    """Return the decoder of a fixed-layout message object (the field table's paths)."""
 
+    def decode(msg: Any) -> Record:
+        frame = None
+        if layout.frame_from_header:
+            try:
+                frame = Frame(msg.header.frame_id)
+            except ValueError:
+                raise SampleError(
+                    f"pose frame_id {msg.header.frame_id!r} is not one of "
+                    f"{[f.value for f in Frame]!r}"
+                ) from None
+        t_ns = stamp_to_ns(msg.header.stamp)
+        return ft.build(layout, t_ns, ft.message_fields(layout, msg), frame)
 
-def _imu(msg: Any) -> ImuSample:
-    return ImuSample(
-        _t_ns(msg.header),
-        float(msg.linear_acceleration.x),
-        float(msg.linear_acceleration.y),
-        float(msg.angular_velocity.z),
-    )
-
-
-def _odom(msg: Any) -> StateEstimate:
-    p = msg.pose.pose
-    tw = msg.twist.twist
-    return StateEstimate(
-        _t_ns(msg.header),
-        float(p.position.x),
-        float(p.position.y),
-        _yaw(p.orientation),
-        float(tw.linear.x),
-        float(tw.linear.y),
-        float(tw.angular.z),
-    )
-
-
-def _twist(msg: Any) -> VelocityReference:
-    tw = msg.twist
-    return VelocityReference(
-        _t_ns(msg.header), float(tw.linear.x), float(tw.linear.y), float(tw.angular.z)
-    )
-
-
-def _wrench(msg: Any) -> ForceCommand:
-    w = msg.wrench
-    return ForceCommand(_t_ns(msg.header), float(w.force.x), float(w.force.y), float(w.torque.z))
-
-
-def _thrusters(msg: Any) -> ThrusterCommand:
-    return ThrusterCommand(
-        _t_ns(msg.header),
-        float(msg.tunnel),
-        float(msg.port),
-        float(msg.starboard),
-        float(msg.port_angle),
-        float(msg.starboard_angle),
-    )
+    return decode
 
 
 def _decision(msg: Any) -> Decision:
@@ -122,7 +70,7 @@ def _decision(msg: Any) -> Decision:
     if inputs.size % 3:
         raise RecordValueError(f"decision safe_inputs has {inputs.size} values, not k x 3")
     return Decision(
-        t_ns=_t_ns(msg.header),
+        t_ns=stamp_to_ns(msg.header.stamp),
         state=(float(msg.x), float(msg.y), float(msg.psi)),
         cell=int(msg.cell),
         value=float(msg.value),
@@ -166,7 +114,7 @@ def _rectangle(msg: Any) -> Rect:
 
 
 def _layout(msg: Any) -> ObstacleLayout:
-    return ObstacleLayout(_t_ns(msg.header), tuple(_rectangle(p) for p in msg.real))
+    return ObstacleLayout(stamp_to_ns(msg.header.stamp), tuple(_rectangle(p) for p in msg.real))
 
 
 def _event(msg: Any) -> Event:
@@ -174,7 +122,7 @@ def _event(msg: Any) -> Event:
         level = EventLevel(int(msg.level))
     except ValueError:
         raise RecordValueError(f"event level {int(msg.level)!r} is not a known level") from None
-    return Event(_t_ns(msg.header), level, str(msg.code), str(msg.text))
+    return Event(stamp_to_ns(msg.header.stamp), level, str(msg.code), str(msg.text))
 
 
 def _controller_ready(msg: Any) -> ControllerReady:
@@ -183,7 +131,7 @@ def _controller_ready(msg: Any) -> ControllerReady:
     except ValueError:
         raise RecordValueError(f"controller source {int(msg.source)!r} is not known") from None
     return ControllerReady(
-        _t_ns(msg.header),
+        stamp_to_ns(msg.header.stamp),
         int(msg.controller_version),
         float(msg.seconds),
         source,
@@ -195,7 +143,7 @@ def _controller_ready(msg: Any) -> ControllerReady:
 
 def _qtm(msg: Any) -> QtmSample:
     return QtmSample(
-        _t_ns(msg.header),
+        stamp_to_ns(msg.header.stamp),
         int(msg.qtm_timestamp_us),
         int(msg.frame_number),
         int(msg.body_index),
@@ -238,12 +186,7 @@ def lab_frame_from_tf(msg: Any) -> LabFrame | None:
 
 
 _DECODERS: dict[str, Callable[[Any], Record]] = {
-    topics.POSE_TYPE: _pose,
-    topics.IMU_TYPE: _imu,
-    topics.ODOM_TYPE: _odom,
-    topics.TWIST_STAMPED_TYPE: _twist,
-    topics.WRENCH_STAMPED_TYPE: _wrench,
-    ts.THRUSTER_COMMANDS: _thrusters,
+    **{layout.msgtype: _from_message(layout) for layout in ft.STAMPED_LAYOUTS},
     ts.DECISION: _decision,
     ts.OBSTACLE_LAYOUT: _layout,
     ts.EVENT: _event,
@@ -276,96 +219,37 @@ def to_record(msgtype: str, msg: Any) -> Record | None:
 
 # ---------------------------------------------------------------- fast reading
 
-_STAMP_LEN = struct.Struct("<iII")  # sec, nanosec, frame_id length (with NUL)
-_LEN = struct.Struct("<I")
 
+class _PayloadDecoder:
+    """Decoder of a fixed-layout little-endian CDR payload (resolved on first use)."""
 
-@cache
-def _doubles(n: int) -> struct.Struct:
-    return struct.Struct(f"<{n}d")
+    __slots__ = ("_doubles", "_layout", "_offsets")
 
+    def __init__(self, layout: ft.FixedLayout) -> None:
+        self._layout = layout
+        self._offsets: ft.Offsets | None = None
+        self._doubles = struct.Struct("")
 
-def _unpack_stamped(
-    data: bytes, n: int, child: bool = False
-) -> tuple[int, str, tuple[float, ...]] | None:
-    """Unpack header + n float64 of a little-endian CDR payload; None if it does not fit."""
-    if len(data) < 16 or data[1] != 1:  # encapsulation 0x0001: CDR little endian
-        return None
-    sec, nsec, str_len = _STAMP_LEN.unpack_from(data, 4)
-    offset = 16 + str_len
-    frame = data[16 : offset - 1].decode("utf-8", "replace")
-    if child:
-        offset += _pad(offset - 4, 4)
-        if offset + 4 > len(data):
+    def __call__(self, data: bytes) -> Record | None:
+        off = self._offsets
+        if off is None:
+            off = self._offsets = ft.offsets(self._layout)
+            self._doubles = struct.Struct(f"<{off.n_values}d")
+        head = cdr.parse_header(data, off.child_frame)
+        if head is None or len(data) != head.values_offset + self._doubles.size:
             return None
-        (child_len,) = _LEN.unpack_from(data, offset)
-        offset += 4 + child_len
-    offset += _pad(offset - 4, 8)
-    if len(data) != offset + 8 * n:
-        return None
-    return sec * NS_PER_S + nsec, frame, _doubles(n).unpack_from(data, offset)
-
-
-def _fast_pose(data: bytes) -> Record | None:
-    got = _unpack_stamped(data, 7 + 36)
-    if got is None:
-        return None
-    t_ns, frame_id, v = got
-    try:
-        frame = Frame(frame_id)
-    except ValueError:
-        return None  # the slow path words the error
-    return PoseSample(t_ns, v[0], v[1], quaternion_yaw(v[3], v[4], v[5], v[6]), frame)
-
-
-def _fast_imu(data: bytes) -> Record | None:
-    got = _unpack_stamped(data, 37)
-    if got is None:
-        return None
-    t_ns, _, v = got
-    return ImuSample(t_ns, v[25], v[26], v[15])
-
-
-def _fast_odom(data: bytes) -> Record | None:
-    got = _unpack_stamped(data, 85, child=True)
-    if got is None:
-        return None
-    t_ns, _, v = got
-    yaw = quaternion_yaw(v[3], v[4], v[5], v[6])
-    return StateEstimate(t_ns, v[0], v[1], yaw, v[43], v[44], v[48])
-
-
-def _fast_twist(data: bytes) -> Record | None:
-    got = _unpack_stamped(data, 6)
-    if got is None:
-        return None
-    t_ns, _, v = got
-    return VelocityReference(t_ns, v[0], v[1], v[5])
-
-
-def _fast_wrench(data: bytes) -> Record | None:
-    got = _unpack_stamped(data, 6)
-    if got is None:
-        return None
-    t_ns, _, v = got
-    return ForceCommand(t_ns, v[0], v[1], v[5])
-
-
-def _fast_thrusters(data: bytes) -> Record | None:
-    got = _unpack_stamped(data, 5)
-    if got is None:
-        return None
-    t_ns, _, v = got
-    return ThrusterCommand(t_ns, *v)
+        values = self._doubles.unpack_from(data, head.values_offset)
+        frame = None
+        if self._layout.frame_from_header:
+            try:
+                frame = Frame(head.frame_id)
+            except ValueError:
+                return None  # the slow path words the error
+        return ft.build(self._layout, head.t_ns, off.row_fields(values), frame)
 
 
 FAST_DECODERS: dict[str, Callable[[bytes], Record | None]] = {
-    topics.POSE_TYPE: _fast_pose,
-    topics.IMU_TYPE: _fast_imu,
-    topics.ODOM_TYPE: _fast_odom,
-    topics.TWIST_STAMPED_TYPE: _fast_twist,
-    topics.WRENCH_STAMPED_TYPE: _fast_wrench,
-    ts.THRUSTER_COMMANDS: _fast_thrusters,
+    layout.msgtype: _PayloadDecoder(layout) for layout in ft.STAMPED_LAYOUTS
 }
 """Message type -> decoder straight from a CDR payload to a sample, for fixed layouts.
 

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from hil.bag import field_table as ft
 from hil.bag import topics
 from hil.bag.storage import RawMessage
 from hil.core.arrays import FloatArray, IntArray
@@ -30,7 +31,7 @@ from hil.core.azimuth import azimuth_commands
 from hil.core.samples import ThrusterCommand
 from hil.core.timeline import in_force
 
-TWIST_TYPE = "geometry_msgs/msg/Twist"
+TWIST_TYPE = topics.TWIST_TYPE
 """The lab's velocity command (unstamped)."""
 WRENCH_TYPE = topics.WRENCH_TYPE
 """The lab's force and per-thruster commands (unstamped)."""
@@ -97,20 +98,18 @@ def unstamped_values(
         msgtype: :data:`TWIST_TYPE` or :data:`WRENCH_TYPE`.
 
     Returns:
-        Log times (N,), values (N, 3) (Twist: linear.x, linear.y, angular.z; Wrench:
-        force.x, force.y, torque.z) and the messages left out with why (one that does
-        not decode or holds a non-finite value).
+        Log times (N,), values (N, 3) (the field table's, :data:`hil.bag.field_table.TWIST`:
+        linear.x, linear.y, angular.z; :data:`~hil.bag.field_table.WRENCH`: force.x,
+        force.y, torque.z) and the messages left out with why (one that does not decode
+        or holds a non-finite value).
     """
+    layout = ft.LAYOUTS[msgtype]
     t_ns: list[int] = []
-    rows: list[tuple[float, float, float]] = []
+    rows: list[tuple[float, ...]] = []
     bad: list[tuple[RawMessage, str]] = []
     for raw in raws:
         try:
-            msg = decode(raw)
-            if msgtype == TWIST_TYPE:
-                row = (float(msg.linear.x), float(msg.linear.y), float(msg.angular.z))
-            else:
-                row = (float(msg.force.x), float(msg.force.y), float(msg.torque.z))
+            row = tuple(ft.message_fields(layout, decode(raw)))
         except ValueError as err:
             bad.append((raw, str(err)))
             continue

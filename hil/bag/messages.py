@@ -2,43 +2,41 @@
 
 :data:`Record` is anything the recorder accepts. :func:`encode` turns one
 sample or record into ``(topic, payload)`` pairs of little-endian CDR bytes: the
-fixed-layout types (pose, IMU, odometry, twist, wrench, thruster commands) with
-precompiled ``struct`` layouts, the variable-size ones (decisions, layouts,
-events) through rosbags' ``serialize_cdr``. It is the per-record reference; the recorder encodes the
-fixed-layout types in bulk (:mod:`hil.bag.columnar`). Tests decode every
-payload with rosbags and with the independent ``mcap_ros2`` decoder.
+fixed-layout types (pose, IMU, odometry, twist, wrench, thruster commands) through the
+bulk encoder generated from the field table (:mod:`hil.bag.columnar`,
+:mod:`hil.bag.field_table`), the variable-size ones (decisions, layouts, events,
+controllers, QTM frames, the static transforms) as rosbags message objects through
+rosbags' ``serialize_cdr``. Tests check every payload against rosbags' serializer fed
+from independent message builders, and decode it with rosbags and with the
+independent ``mcap_ros2`` decoder.
 
 Reading them back is :mod:`hil.bag.decoding`.
 
 Where each goes (:mod:`hil.bag.topics`): a pose to the lab's topic in the lab's frame
-(mapped back through the :class:`LabFrame`'s transform when it is an arena pose) and to
-``/hil/pose`` in the arena; the velocity and force commands unstamped to the lab's
-topics and stamped to ``/hil/...``; the estimate to ``/hil/odom``.
+(mapped back through the :class:`~hil.bag.lab_frame.LabFrame`'s transform when it is an
+arena pose) and to ``/hil/pose`` in the arena; the velocity and force commands unstamped
+to the lab's topics and stamped to ``/hil/...``; the estimate to ``/hil/odom``.
 
-Conventions: header stamps hold the sample time; the pose yaw is a quaternion
-about z (x, y, z, w order, as ROS stores it); the IMU has no orientation
+Conventions: header stamps hold the sample time (:mod:`hil.bag.cdr`); the pose yaw is a
+quaternion about z (x, y, z, w order, as ROS stores it); the IMU has no orientation
 (``orientation_covariance[0] = -1``, REP 145). The lab's per-thruster Wrench
 topics carry the tunnel command in force.x and each azimuth as the vector
-``c (cos a, sin a)`` in force.x, force.y; that loses the sign of ``c``, so the
-lossless copy on ``/hil/thrusters`` is the one read back.
+``c (cos a, sin a)`` in force.x, force.y (:mod:`hil.core.azimuth`); that loses the sign
+of ``c``, so the lossless copy on ``/hil/thrusters`` is the one read back.
 """
 
 from __future__ import annotations
 
-import struct
 from collections.abc import Callable
-from dataclasses import dataclass, field
-from functools import cache
 from typing import Any
 
 import numpy as np
 
-from hil.bag import topics
+from hil.bag import cdr, topics
 from hil.bag import typestore as ts
+from hil.bag.columnar import BULK_ENCODERS, encode_poses
 from hil.bag.errors import RecordValueError
-from hil.core.arena_frame import ArenaTransform
-from hil.core.azimuth import azimuth_vector
-from hil.core.clock import NS_PER_S
+from hil.bag.lab_frame import DEFAULT_LAB_FRAME, LabFrame
 from hil.core.geometry import yaw_quaternion
 from hil.core.qtm_sample import QtmSample
 from hil.core.records import (
@@ -49,7 +47,6 @@ from hil.core.records import (
     StateEstimate,
 )
 from hil.core.samples import (
-    Frame,
     ImuSample,
     ObstacleLayout,
     PoseSample,
@@ -88,209 +85,12 @@ RECORD_TYPES: tuple[type, ...] = (
 )
 
 Encoded = list[tuple[str, bytes]]
-
-_ENCAPSULATION = b"\x00\x01\x00\x00"  # CDR, little endian
-
-
-@dataclass(frozen=True, slots=True)
-class LabFrame:
-    """The lab's pose frame: how hil's arena poses map back to what the lab's topic holds.
-
-    Attributes:
-        transform: Lab world and mocap body to the arena and the vessel's body origin
-            (the vessel config's ``[ros.transform]``; identity in simulation by default).
-        frame_id: Frame id of the lab's poses (``[ros] pose_frame_id``, ``world_ned``).
-    """
-
-    transform: ArenaTransform = field(default_factory=ArenaTransform)
-    frame_id: str = topics.LAB_FRAME
-
-    def __post_init__(self) -> None:
-        if not self.frame_id or "\x00" in self.frame_id:
-            raise RecordValueError(f"lab pose frame id {self.frame_id!r} is empty or has a NUL")
-
-
-DEFAULT_LAB_FRAME = LabFrame()
-"""Identity transform, ``world_ned``: what simulation records without a vessel config."""
-
-
-@cache
-def _stamped(frame_id: str, n_doubles: int, child_frame_id: str | None = None) -> struct.Struct:
-    """Return the layout: CDR header, stamp, frame_id [, child_frame_id], n float64.
-
-    Alignment in CDR counts from the end of the 4-byte encapsulation header: the
-    string lengths are 4-aligned, the float64 fields 8-aligned.
-    """
-    frame_len = len(frame_id.encode()) + 1  # strings carry their NUL
-    fmt = f"<4siiI{frame_len}s"
-    offset = 4 + 4 + 4 + frame_len  # sec, nanosec, string length, string
-    if child_frame_id is not None:
-        child_len = len(child_frame_id.encode()) + 1
-        pad = _pad(offset, 4)
-        fmt += f"{pad}xI{child_len}s"
-        offset += pad + 4 + child_len
-    fmt += f"{_pad(offset, 8)}x{n_doubles}d"
-    return struct.Struct(fmt)
-
-
-def _pad(offset: int, align: int) -> int:
-    return (-offset) % align
-
-
-_WRENCH = struct.Struct("<4s6d")
-
-
-def _stamp(t_ns: int) -> tuple[int, int]:
-    if t_ns < 0 or t_ns >= 2**31 * NS_PER_S:
-        raise RecordValueError(f"time {t_ns!r} ns does not fit a ROS stamp (int32 seconds >= 0)")
-    sec, nsec = divmod(int(t_ns), NS_PER_S)
-    return sec, nsec
-
-
-def _encode_header_only(
-    layout: struct.Struct, frame_id: str, t_ns: int, values: tuple[float, ...]
-) -> bytes:
-    sec, nsec = _stamp(t_ns)
-    frame = frame_id.encode() + b"\x00"
-    return layout.pack(_ENCAPSULATION, sec, nsec, len(frame), frame, *values)
-
-
-def _pose_payload(frame_id: str, t_ns: int, x_m: float, y_m: float, yaw_rad: float) -> bytes:
-    values = (x_m, y_m, 0.0, *yaw_quaternion(yaw_rad), *_ZERO36)
-    return _encode_header_only(_stamped(frame_id, 43), frame_id, t_ns, values)
-
-
-def encode_pose(sample: PoseSample, lab: LabFrame = DEFAULT_LAB_FRAME) -> Encoded:
-    """Encode a pose as PoseWithCovarianceStamped (covariance zero) in both frames.
-
-    Args:
-        sample: The pose, in the arena or in the lab's frame.
-        lab: The lab's frame and the transform between the two.
-
-    Returns:
-        The lab's pose on the lab's topic (frame ``lab.frame_id``), the arena pose on
-        ``/hil/pose`` (frame ``arena``).
-    """
-    t = lab.transform
-    if sample.frame is Frame.LAB_NED:
-        in_lab, in_arena = sample, t.to_arena(sample)
-    else:
-        in_lab, in_arena = t.to_lab(sample), sample
-    return [
-        (topics.POSE, _pose_payload(lab.frame_id, in_lab.t_ns, in_lab.x_m, in_lab.y_m,
-                                    in_lab.yaw_rad)),
-        (topics.HIL_POSE, _pose_payload(topics.ARENA_FRAME, sample.t_ns, in_arena.x_m,
-                                        in_arena.y_m, in_arena.yaw_rad)),
-    ]  # fmt: skip
-
-
-_ZERO36 = (0.0,) * 36
-_ZERO9 = (0.0,) * 9
-_NO_ORIENTATION = (0.0, 0.0, 0.0, 1.0, -1.0, *(0.0,) * 8)
-
-
-def encode_imu(sample: ImuSample) -> Encoded:
-    """Encode an IMU sample as sensor_msgs/Imu (no orientation, covariances zero)."""
-    values = (
-        *_NO_ORIENTATION,
-        0.0,
-        0.0,
-        sample.yaw_rate_radps,
-        *_ZERO9,
-        sample.accel_x_mps2,
-        sample.accel_y_mps2,
-        0.0,
-        *_ZERO9,
-    )
-    layout = _stamped(topics.IMU_FRAME, 37)
-    return [(topics.IMU, _encode_header_only(layout, topics.IMU_FRAME, sample.t_ns, values))]
-
-
-def _both_six(lab_topic: str, hil_topic: str, t_ns: int, values: tuple[float, ...]) -> Encoded:
-    """Six doubles unstamped on the lab's topic (Twist, Wrench), stamped on hil's."""
-    stamped = _encode_header_only(_stamped(topics.BODY_FRAME, 6), topics.BODY_FRAME, t_ns, values)
-    _stamp(t_ns)
-    return [(lab_topic, _WRENCH.pack(_ENCAPSULATION, *values)), (hil_topic, stamped)]
-
-
-def encode_velocity_reference(sample: VelocityReference) -> Encoded:
-    """Encode nu_ref as the lab's Twist and as TwistStamped on /hil (body frame).
-
-    linear.x = u, linear.y = v, angular.z = r.
-    """
-    values = (sample.surge_mps, sample.sway_mps, 0.0, 0.0, 0.0, sample.yaw_rate_radps)
-    return _both_six(topics.VELOCITY_COMMAND, topics.HIL_VELOCITY_COMMAND, sample.t_ns, values)
-
-
-def encode_force(record: ForceCommand) -> Encoded:
-    """Encode tau as the lab's Wrench and as WrenchStamped on /hil (body frame).
-
-    force.x = X, force.y = Y, torque.z = N.
-    """
-    values = (record.surge_n, record.sway_n, 0.0, 0.0, 0.0, record.yaw_nm)
-    return _both_six(topics.FORCE_COMMAND, topics.HIL_FORCE_COMMAND, record.t_ns, values)
-
-
-def encode_state_estimate(record: StateEstimate) -> Encoded:
-    """Encode the estimate as nav_msgs/Odometry: pose in the arena, twist in the body frame."""
-    values = (
-        record.x_m,
-        record.y_m,
-        0.0,
-        *yaw_quaternion(record.yaw_rad),
-        *_ZERO36,
-        record.surge_mps,
-        record.sway_mps,
-        0.0,
-        0.0,
-        0.0,
-        record.yaw_rate_radps,
-        *_ZERO36,
-    )
-    layout = _stamped(topics.ARENA_FRAME, 85, topics.BODY_FRAME)
-    sec, nsec = _stamp(record.t_ns)
-    frame = topics.ARENA_FRAME.encode() + b"\x00"
-    child = topics.BODY_FRAME.encode() + b"\x00"
-    payload = layout.pack(_ENCAPSULATION, sec, nsec, len(frame), frame, len(child), child, *values)
-    return [(topics.HIL_ODOM, payload)]
-
-
-_THRUSTERS = _stamped(topics.BODY_FRAME, 5)
-
-
-def encode_thrusters(sample: ThrusterCommand) -> Encoded:
-    """Encode thruster commands on the lab's three Wrench topics and on /hil/thrusters."""
-    tunnel = _WRENCH.pack(_ENCAPSULATION, sample.tunnel, 0.0, 0.0, 0.0, 0.0, 0.0)
-    port = _WRENCH.pack(
-        _ENCAPSULATION, *azimuth_vector(sample.port, sample.port_angle_rad), 0.0, 0.0, 0.0, 0.0
-    )
-    starboard = _WRENCH.pack(
-        _ENCAPSULATION,
-        *azimuth_vector(sample.starboard, sample.starboard_angle_rad),
-        0.0,
-        0.0,
-        0.0,
-        0.0,
-    )
-    values = (
-        sample.tunnel,
-        sample.port,
-        sample.starboard,
-        sample.port_angle_rad,
-        sample.starboard_angle_rad,
-    )
-    full = _encode_header_only(_THRUSTERS, topics.BODY_FRAME, sample.t_ns, values)
-    return [
-        (topics.THRUSTER_TUNNEL, tunnel),
-        (topics.THRUSTER_PORT, port),
-        (topics.THRUSTER_STARBOARD, starboard),
-        (topics.THRUSTERS, full),
-    ]
+"""(topic, CDR payload) pairs."""
 
 
 def _header(t_ns: int, frame_id: str) -> Any:
     store = ts.typestore()
-    sec, nsec = _stamp(t_ns)
+    sec, nsec = cdr.stamp(t_ns)
     time_cls = store.types["builtin_interfaces/msg/Time"]
     header_cls = store.types["std_msgs/msg/Header"]
     return header_cls(stamp=time_cls(sec=sec, nanosec=nsec), frame_id=frame_id)
@@ -419,7 +219,7 @@ def tf_static_msg(t_ns: int, lab: LabFrame) -> Any:
 
 def encode_tf_static(t_ns: int, lab: LabFrame) -> Encoded:
     """Encode the static frames (:func:`tf_static_msg`) on /tf_static."""
-    _stamp(t_ns)
+    cdr.stamp(t_ns)
     return _serialized(topics.TF_STATIC, topics.TF_TYPE, tf_static_msg(t_ns, lab))
 
 
@@ -453,18 +253,13 @@ def encode_qtm(record: QtmSample) -> Encoded:
 
 
 ENCODERS: dict[type, Callable[[Any], Encoded]] = {
-    PoseSample: encode_pose,
-    ImuSample: encode_imu,
-    VelocityReference: encode_velocity_reference,
-    ThrusterCommand: encode_thrusters,
-    StateEstimate: encode_state_estimate,
-    ForceCommand: encode_force,
     Decision: encode_decision,
     ObstacleLayout: encode_obstacles,
     Event: encode_event,
     ControllerReady: encode_controller_ready,
     QtmSample: encode_qtm,
 }
+"""Record type -> encoder, for the variable-size types (the others: :data:`BULK_ENCODERS`)."""
 
 
 def encode(record: Record, lab: LabFrame = DEFAULT_LAB_FRAME) -> Encoded:
@@ -481,13 +276,15 @@ def encode(record: Record, lab: LabFrame = DEFAULT_LAB_FRAME) -> Encoded:
     Raises:
         RecordValueError: Unknown record type or a time that does not fit a ROS stamp.
     """
-    try:
-        encoder = ENCODERS[type(record)]
-    except KeyError:
+    if isinstance(record, PoseSample):
+        blocks = encode_poses([record], lab)
+    elif type(record) in BULK_ENCODERS:
+        blocks = BULK_ENCODERS[type(record)]([record])
+    elif type(record) in ENCODERS:
+        return ENCODERS[type(record)](record)
+    else:
         raise RecordValueError(
             f"cannot record {type(record).__name__!r}: expected one of "
             f"{sorted(t.__name__ for t in RECORD_TYPES)!r}"
-        ) from None
-    if isinstance(record, PoseSample):
-        return encode_pose(record, lab)
-    return encoder(record)
+        )
+    return [(block.topic, block.payloads[0].tobytes()) for block in blocks]

@@ -28,11 +28,10 @@ What happens with damaged or foreign input:
 from __future__ import annotations
 
 import heapq
-from collections.abc import Collection, Iterator
+from collections.abc import Callable, Collection, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path, PurePath
-from types import TracebackType
-from typing import Any, Literal, Self
+from typing import Any, Literal, TypeVar
 
 from rosbags.typesys.store import Typestore
 
@@ -66,8 +65,11 @@ from hil.bag.typestore import (
     register_hil_types,
     register_new,
 )
+from hil.core.lifecycle import OpenedByWith
 
 OnError = Literal["raise", "skip"]
+
+_T = TypeVar("_T")
 
 
 @dataclass(frozen=True, slots=True)
@@ -189,7 +191,7 @@ def _check_exists(path: Path) -> None:
         raise BagNotFoundError(f"{str(path)!r} does not exist")
 
 
-class BagReader:
+class BagReader(OpenedByWith):
     """Read a bag directory or a bare MCAP/sqlite3 file; never modifies it.
 
     Args:
@@ -362,18 +364,6 @@ class BagReader:
             raise ReplayError(f"reader for {str(self.path)!r} is not open")
         return self._files, self._info, self._store
 
-    def __enter__(self) -> Self:
-        self.open()
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
-
     # ------------------------------------------------------------ reading
 
     @property
@@ -444,15 +434,29 @@ class BagReader:
         Raises:
             BagError: A message or topic cannot be decoded and `on_error` is "raise".
         """
+        for raw, msg in self._converted(topics, on_error, self.decode):
+            yield raw.topic, raw.t_ns, msg
+
+    def _converted(
+        self,
+        topics: Collection[str] | None,
+        on_error: OnError,
+        convert: Callable[[RawMessage], _T],
+    ) -> Iterator[tuple[RawMessage, _T]]:
+        """Yield each message of `topics` with `convert`'s result, in log-time order.
+
+        A message `convert` refuses (:class:`BagError`) raises, or with ``"skip"`` is
+        listed in :attr:`skipped` and left out.
+        """
         for raw in self.messages(topics):
             try:
-                msg = self.decode(raw)
+                out = convert(raw)
             except BagError as err:
                 if on_error == "raise":
                     raise
                 self.skipped.append(SkippedMessage(raw.topic, raw.t_ns, str(err)))
                 continue
-            yield raw.topic, raw.t_ns, msg
+            yield raw, out
 
     def records(
         self, topics: Collection[str] | None = None, *, on_error: OnError = "raise"
@@ -480,14 +484,7 @@ class BagReader:
             topics = [
                 t.name for t in info.topics if t.msgtype in SAMPLE_TYPES and t.name not in copied
             ]
-        for raw in self.messages(topics):
-            try:
-                record = self.sample(raw)
-            except BagError as err:
-                if on_error == "raise":
-                    raise
-                self.skipped.append(SkippedMessage(raw.topic, raw.t_ns, str(err)))
-                continue
+        for raw, record in self._converted(topics, on_error, self.sample):
             if record is not None:
                 yield raw.topic, raw.t_ns, record
 

@@ -34,8 +34,7 @@ from collections import Counter, deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import TracebackType
-from typing import IO, Any, Literal, Protocol, Self
+from typing import IO, Any, Literal, Protocol
 
 import numpy as np
 
@@ -44,8 +43,9 @@ from hil.bag import topics
 from hil.bag import typestore as ts
 from hil.bag.columnar import BULK_ENCODERS, Block, encode_poses
 from hil.bag.errors import RecorderClosedError, RecorderError, RecordValueError
+from hil.bag.lab_frame import LabFrame
 from hil.bag.mcap_writer import McapChunkWriter
-from hil.bag.messages import Encoded, LabFrame, Record, encode, encode_tf_static
+from hil.bag.messages import Encoded, Record, encode, encode_tf_static
 from hil.bag.metadata import (
     RECORD_NAME,
     FileEntry,
@@ -55,6 +55,7 @@ from hil.bag.metadata import (
 )
 from hil.bag.run_info import RunInfo
 from hil.core.arrays import FloatArray
+from hil.core.lifecycle import OpenedByWith
 from hil.core.records import (
     ControllerReady,
     Decision,
@@ -278,7 +279,7 @@ def _type_hash(msgtype: str) -> str:
 _MAX_T_NS = 2**31 * 1_000_000_000
 
 
-class Recorder:
+class Recorder(OpenedByWith):
     """Record a run to a rosbag2 directory with MCAP splits.
 
     Use as a context manager, or call :meth:`open` and :meth:`close`::
@@ -528,15 +529,3 @@ class Recorder:
         self._closed_files = tuple(f.path for f in bag.files)
         if error is not None:
             raise RecorderError(f"recorder for {str(self.path)!r} failed: {error}") from error
-
-    def __enter__(self) -> Self:
-        self.open()
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()

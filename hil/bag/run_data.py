@@ -47,10 +47,12 @@ from typing import Any, TypeVar
 
 import numpy as np
 
+from hil.bag import field_table as ft
 from hil.bag import topics
 from hil.bag.columns import to_columns
 from hil.bag.decoding import lab_frame_from_tf, to_record
 from hil.bag.errors import BagError, FrameError, NotAHilRunError, OldLogFormatError
+from hil.bag.lab_frame import LabFrame
 from hil.bag.lab_streams import (
     LAB_POSE_FRAME,
     UNSTAMPED_TYPES,
@@ -58,7 +60,7 @@ from hil.bag.lab_streams import (
     thrusters_from_wrenches,
     unstamped_values,
 )
-from hil.bag.messages import LabFrame, Record
+from hil.bag.messages import Record
 from hil.bag.reader import BagInfo, BagReader, SkippedMessage
 from hil.bag.repairs import Repair, RepairKind, tidy
 from hil.bag.run_info import RunInfo
@@ -68,20 +70,22 @@ from hil.core.qtm_sample import QtmSample
 from hil.core.records import ControllerReady, ControllerSource, Decision, Event
 from hil.core.samples import ObstacleLayout
 from hil.core.shapes import Rect
+from hil.core.timeline import in_force
 from hil.core.tracking import TrackingSeries, tracking_error
 
 _LEGACY_READY = re.compile(r"controller v(\d+)\b( early)?(?: in ([0-9.eE+-]+) s)?")
 _CONTROLLER_READY = "controller_ready"
 
 FIELDS: dict[str, tuple[str, ...]] = {
-    topics.POSE: ("x_m", "y_m", "yaw_rad"),
-    topics.IMU: ("accel_x_mps2", "accel_y_mps2", "yaw_rate_radps"),
-    topics.ODOM: ("x_m", "y_m", "yaw_rad", "surge_mps", "sway_mps", "yaw_rate_radps"),
-    topics.VELOCITY_COMMAND: ("surge_mps", "sway_mps", "yaw_rate_radps"),
-    topics.FORCE_COMMAND: ("surge_n", "sway_n", "yaw_nm"),
-    topics.THRUSTERS: ("tunnel", "port", "starboard", "port_angle_rad", "starboard_angle_rad"),
+    topics.POSE: ft.POSE.names,
+    topics.IMU: ft.IMU.names,
+    topics.ODOM: ft.ODOM.names,
+    topics.VELOCITY_COMMAND: ft.TWIST_STAMPED.names,
+    topics.FORCE_COMMAND: ft.WRENCH_STAMPED.names,
+    topics.THRUSTERS: ft.THRUSTERS.names,
 }
-"""Topic -> the sample fields kept, in column order: the one field table of a run."""
+"""Topic -> the sample fields kept, in column order: the field table's
+(:mod:`hil.bag.field_table`) for each stream."""
 
 RECORD_TOPICS = (topics.DECISION, topics.OBSTACLES, topics.EVENTS, topics.CONTROLLERS)
 """Topics read as records (variable size)."""
@@ -289,15 +293,17 @@ class RunData:
             c for c in self.controllers_ready() if c.complete and math.isfinite(c.seconds)
         )
 
+    def layout_in_force(self, t_ns: int) -> Layout | None:
+        """Return the newest layout observed at or before `t_ns`; None before the first.
+
+        The rule of :func:`hil.core.timeline.in_force` over the layouts (in time order).
+        """
+        k = int(in_force([layout.t_ns for layout in self.layouts], t_ns)[0])
+        return self.layouts[k] if k >= 0 else None
+
     def layout_at(self, t_ns: int) -> Layout | None:
-        """Return the newest layout observed at or before `t_ns` (else the first, or None)."""
-        if not self.layouts:
-            return None
-        best = self.layouts[0]
-        for layout in self.layouts:
-            if layout.t_ns <= t_ns:
-                best = layout
-        return best
+        """Return the layout in force at `t_ns` (else the first, or None without any)."""
+        return self.layout_in_force(t_ns) or (self.layouts[0] if self.layouts else None)
 
 
 _T = TypeVar("_T")

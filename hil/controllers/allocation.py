@@ -45,7 +45,7 @@ from hil.controllers.allocation_kernels import (
     pseudo_inverse_allocate,
 )
 from hil.controllers.errors import AllocationConfigError, NonFiniteDemandError
-from hil.core.arrays import FloatArray
+from hil.core.arrays import FloatArray, finite_vector
 from hil.model.thrusters import VOYAGER_THRUSTERS, ThrusterParams
 
 __all__ = [
@@ -95,21 +95,11 @@ class Allocator(Protocol):
 
 
 def _check_tau(tau_n: FloatArray) -> FloatArray:
-    tau = np.asarray(tau_n, dtype=np.float64)
-    if tau.shape != (3,):
-        raise AllocationConfigError(f"force demand must have shape (3,), got {tau.shape!r}")
-    if not np.all(np.isfinite(tau)):
-        raise NonFiniteDemandError(f"force demand must be finite, got {tau.tolist()!r}")
-    return tau
+    return finite_vector("force demand", tau_n, 3, AllocationConfigError, NonFiniteDemandError)
 
 
 def _check_angles(angles_rad: FloatArray) -> FloatArray:
-    angles = np.asarray(angles_rad, dtype=np.float64)
-    if angles.shape != (2,):
-        raise AllocationConfigError(f"pod angles must have shape (2,), got {angles.shape!r}")
-    if not np.all(np.isfinite(angles)):
-        raise NonFiniteDemandError(f"pod angles must be finite, got {angles.tolist()!r}")
-    return angles
+    return finite_vector("pod angles", angles_rad, 2, AllocationConfigError, NonFiniteDemandError)
 
 
 def weighted_pseudo_inverse(be: FloatArray, weights: FloatArray) -> FloatArray:

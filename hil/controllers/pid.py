@@ -30,7 +30,7 @@ import numpy as np
 
 from hil.controllers.allocation_kernels import matvec
 from hil.controllers.envelope import axis_force_limits
-from hil.core.arrays import FloatArray
+from hil.core.arrays import FloatArray, finite_vector
 from hil.core.jit import njit
 from hil.model.coefficients import ENTERPRISE_I, VesselParams
 from hil.model.dynamics import hydro_force
@@ -267,12 +267,7 @@ def checked_vec3(name: str, value: FloatArray) -> FloatArray:
         PidConfigError: Wrong shape.
         NonFiniteInputError: NaN or inf in it.
     """
-    arr = np.asarray(value, dtype=np.float64)
-    if arr.shape != (3,):
-        raise PidConfigError(f"{name} must have shape (3,), got {arr.shape!r}")
-    if not np.all(np.isfinite(arr)):
-        raise NonFiniteInputError(f"{name} must be finite, got {arr.tolist()!r}")
-    return arr
+    return finite_vector(name, value, 3, PidConfigError, NonFiniteInputError)
 
 
 class VelocityPid:

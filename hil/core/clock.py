@@ -9,9 +9,26 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from typing import Any
 
 NS_PER_S = 1_000_000_000
 """Nanoseconds per second: every hil time stamp is integer nanoseconds."""
+
+
+def stamp_fields(t_ns: int) -> tuple[int, int]:
+    """Return a time (ns) as a ROS stamp's (sec, nanosec): whole seconds and the rest."""
+    sec, nanosec = divmod(int(t_ns), NS_PER_S)
+    return sec, nanosec
+
+
+def stamp_to_ns(stamp: Any) -> int:
+    """Return a builtin_interfaces/Time (rclpy's, rosbags': ``sec``, ``nanosec``) in ns."""
+    return int(stamp.sec) * NS_PER_S + int(stamp.nanosec)
+
+
+def fill_stamp(stamp: Any, t_ns: int) -> None:
+    """Write a time (ns) into a builtin_interfaces/Time in place (:func:`stamp_fields`)."""
+    stamp.sec, stamp.nanosec = stamp_fields(t_ns)
 
 
 class SimClock:

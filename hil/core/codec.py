@@ -16,11 +16,12 @@ from __future__ import annotations
 
 import dataclasses
 import enum
-import types
 import typing
 from functools import cache
 from pathlib import Path
 from typing import Any, TypeVar, overload
+
+from hil.core.unions import first_member, is_union
 
 __all__ = ["CodecError", "from_jsonable", "to_jsonable"]
 
@@ -81,19 +82,11 @@ def _decode(kind: Any, data: Any) -> Any:
     if kind is Any:
         return data
     origin = typing.get_origin(kind)
-    if origin in (typing.Union, types.UnionType):
-        options = typing.get_args(kind)
-        if data is None and type(None) in options:
-            return None
-        errors = []
-        for option in options:
-            if option is type(None):
-                continue
-            try:
-                return _decode(option, data)
-            except CodecError as err:
-                errors.append(str(err))
-        raise CodecError(f"{data!r} fits none of {kind!r}: {'; '.join(errors)}")
+    if is_union(kind):
+        found = first_member(kind, data, lambda option: _decode(option, data), CodecError)
+        if found.ok:
+            return found.value
+        raise CodecError(f"{data!r} fits none of {kind!r}: {'; '.join(found.errors)}")
     if origin is tuple:
         args = typing.get_args(kind)
         _expect(isinstance(data, list), kind, data)

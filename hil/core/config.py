@@ -14,10 +14,11 @@ from __future__ import annotations
 import dataclasses
 import math
 import tomllib
-import types
 import typing
 from pathlib import Path
-from typing import Any, TypeVar, Union
+from typing import Any, TypeVar
+
+from hil.core.unions import first_member, is_union
 
 __all__ = [
     "ConfigError",
@@ -148,19 +149,13 @@ def numbers(data: dict[str, Any], key: str, where: str, n: int) -> tuple[float, 
 def _convert(value: Any, hint: Any, where: str, key: str, note: str) -> Any:
     origin = typing.get_origin(hint)
     name = key_name(where, key)
-    if origin in (Union, types.UnionType):
-        options = typing.get_args(hint)
-        if value is None and type(None) in options:
-            return None
-        errors = []
-        for option in options:
-            if option is type(None):
-                continue
-            try:
-                return _convert(value, option, where, key, note)
-            except ConfigError as err:
-                errors.append(str(err))
-        raise ConfigError(errors[0] if errors else f"key {name} has an unusable value")
+    if is_union(hint):
+        found = first_member(
+            hint, value, lambda option: _convert(value, option, where, key, note), ConfigError
+        )
+        if found.ok:
+            return found.value
+        raise ConfigError(found.errors[0] if found.errors else f"key {name} has an unusable value")
     if dataclasses.is_dataclass(hint) and isinstance(hint, type):
         if not isinstance(value, dict):
             raise ConfigError(f"key {name} must be a table, got {value!r}")

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hil.core.arrays import FloatArray
+from hil.core.arrays import FloatArray, finite_vector
 from hil.core.geometry import wrap_angle
 from hil.core.jit import njit
 from hil.model.errors import NonFiniteCommandError, StateShapeError, VesselConfigError
@@ -185,12 +185,7 @@ def thruster_update(
 
 
 def _vec(name: str, value: object, n: int) -> FloatArray:
-    arr = np.asarray(value, dtype=np.float64)
-    if arr.shape != (n,):
-        raise StateShapeError(f"{name} must have shape ({n},), got {arr.shape!r}")
-    if not np.all(np.isfinite(arr)):
-        raise NonFiniteCommandError(f"{name} must be finite, got {arr.tolist()!r}")
-    return arr
+    return finite_vector(name, value, n, StateShapeError, NonFiniteCommandError)
 
 
 @dataclass(frozen=True, slots=True)

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hil.core.arrays import FloatArray
+from hil.core.arrays import FloatArray, finite_vector
 from hil.core.geometry import wrap_angle
 from hil.model.coefficients import ENTERPRISE_I, VesselParams
 from hil.model.dynamics import Integrator, acceleration, integrate_step, simulate_kernel
@@ -23,12 +23,7 @@ __all__ = ["Vessel", "VesselState"]
 
 
 def _as_vec3(name: str, value: object) -> FloatArray:
-    arr = np.asarray(value, dtype=np.float64)
-    if arr.shape != (3,):
-        raise StateShapeError(f"{name} must have shape (3,), got {arr.shape!r}")
-    if not np.all(np.isfinite(arr)):
-        raise StateShapeError(f"{name} must be finite, got {arr.tolist()!r}")
-    return arr
+    return finite_vector(name, value, 3, StateShapeError, StateShapeError)
 
 
 def _check_force(name: str, value: object) -> FloatArray:

@@ -132,12 +132,9 @@ def _made(layouts: int, sources: ControllerSources) -> str:
 
 
 def layout_at(run: RunData, t_ns: int) -> ObstacleLayout | None:
-    """Return the newest recorded layout stamped at or before `t_ns`."""
-    best: ObstacleLayout | None = None
-    for layout in run.layouts:
-        if layout.t_ns <= t_ns and (best is None or layout.t_ns >= best.t_ns):
-            best = layout.as_obstacle_layout()
-    return best
+    """Return the newest recorded layout stamped at or before `t_ns` (None before the first)."""
+    layout = run.layout_in_force(t_ns)
+    return None if layout is None else layout.as_obstacle_layout()
 
 
 def _inputs(controller: SymbolicController, indices: tuple[int, ...]) -> list[list[float]]:

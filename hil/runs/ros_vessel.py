@@ -25,7 +25,7 @@ from hil.adapters.ros import (
     thruster_command_from_components,
 )
 from hil.adapters.sim import SimWorld
-from hil.core.clock import NS_PER_S
+from hil.core.clock import NS_PER_S, fill_stamp
 from hil.core.samples import ThrusterCommand
 
 # Simulated time advanced per publication cycle (s).
@@ -159,7 +159,7 @@ class SimVesselNode:
             world.clock.sleep_until(t_ns)
             if clock_pub is not None:
                 msg = clock_type()
-                msg.clock.sec, msg.clock.nanosec = divmod(t_ns, NS_PER_S)
+                fill_stamp(msg.clock, t_ns)
                 clock_pub.publish(msg)
             for pose in world.pose.poll():
                 out = pose_type()

@@ -26,7 +26,7 @@ from hil.adapters.interfaces import ObstacleSource, PoseSource
 from hil.adapters.obstacles import StaticObstacleSource
 from hil.adapters.qtm import QtmPoseSource
 from hil.adapters.ros import RosBackendError, RosWorld
-from hil.bag.messages import DEFAULT_LAB_FRAME, LabFrame
+from hil.bag.lab_frame import DEFAULT_LAB_FRAME, LabFrame
 from hil.bag.recorder import Recorder
 from hil.bag.run_info import RunInfo
 from hil.core.config import ConfigError

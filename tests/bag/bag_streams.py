@@ -1,4 +1,5 @@
-"""Helpers for the replay tests: one record of every stream, the foreign bags, file digests."""
+"""Helpers for the bag tests: one record of every stream, the foreign bags, file digests,
+a bare MCAP file of given payloads."""
 
 from __future__ import annotations
 
@@ -6,6 +7,10 @@ import hashlib
 import math
 from pathlib import Path
 
+from mcap.writer import Writer as McapWriter
+
+from hil.bag import topics
+from hil.bag import typestore as ts
 from hil.bag.messages import Record
 from hil.core.records import (
     ControllerReady,
@@ -41,6 +46,24 @@ def tree_digest(path: Path) -> dict[str, str]:
     """Return sha256 of every file under `path` (or of `path` itself), plus the listing."""
     files = [path] if path.is_file() else sorted(p for p in path.rglob("*") if p.is_file())
     return {str(p): hashlib.sha256(p.read_bytes()).hexdigest() for p in files}
+
+
+def write_raw_mcap(path: Path, messages: list[tuple[str, int, bytes]]) -> Path:
+    """Write (topic, log time ns, payload) as given (any order, any payload) to a ROS 2 MCAP."""
+    with path.open("wb") as stream:
+        writer = McapWriter(stream)
+        writer.start(profile="ros2", library="test")
+        channels: dict[str, int] = {}
+        for topic, t_ns, payload in messages:
+            if topic not in channels:
+                msgtype = topics.TOPIC_TYPES[topic]
+                schema = writer.register_schema(
+                    msgtype, "ros2msg", ts.schema_text(msgtype).encode()
+                )
+                channels[topic] = writer.register_channel(topic, "cdr", schema)
+            writer.add_message(channels[topic], t_ns, payload, t_ns)
+        writer.finish()  # type: ignore[no-untyped-call]
+    return path
 
 
 def one_of_each(t_ns: int, i: int = 0) -> list[Record]:

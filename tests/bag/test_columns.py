@@ -8,17 +8,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from mcap.writer import Writer as McapWriter
 
 from hil.bag import topics
-from hil.bag import typestore as ts
 from hil.bag.columns import COLUMN_TYPES, Columns, to_columns
 from hil.bag.errors import MessageDecodeError
 from hil.bag.messages import encode
 from hil.bag.reader import BagReader
 from hil.bag.recorder import Recorder, RecorderConfig
 from hil.core.samples import Frame, ImuSample, PoseSample
-from tests.bag.bag_streams import one_of_each
+from tests.bag.bag_streams import one_of_each, write_raw_mcap
 
 
 def _columns(reader: BagReader, topic: str) -> Columns:
@@ -61,15 +59,7 @@ def test_topic_without_columns(bag: Path) -> None:
 
 
 def _write(path: Path, payloads: list[bytes]) -> None:
-    with path.open("wb") as stream:
-        writer = McapWriter(stream)
-        writer.start(profile="ros2", library="test")
-        text = ts.schema_text(topics.POSE_TYPE).encode()
-        schema = writer.register_schema(topics.POSE_TYPE, "ros2msg", text)
-        channel = writer.register_channel(topics.POSE, "cdr", schema)
-        for i, payload in enumerate(payloads):
-            writer.add_message(channel, i, payload, i)
-        writer.finish()  # type: ignore[no-untyped-call]
+    write_raw_mcap(path, [(topics.POSE, i, payload) for i, payload in enumerate(payloads)])
 
 
 def _pose(i: int, frame: Frame = Frame.ARENA) -> bytes:

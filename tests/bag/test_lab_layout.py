@@ -15,7 +15,7 @@ from rosbags.typesys import Stores, get_typestore
 from ruamel.yaml import YAML
 
 from hil.bag import topics
-from hil.bag.messages import LabFrame
+from hil.bag.lab_frame import LabFrame
 from hil.bag.metadata import read_metadata
 from hil.bag.recorder import Recorder, RecorderConfig
 from hil.bag.run_data import load_run

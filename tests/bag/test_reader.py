@@ -12,8 +12,6 @@ import numpy as np
 import pytest
 from mcap.writer import Writer as McapWriter
 
-from hil.bag import topics
-from hil.bag import typestore as ts
 from hil.bag.errors import (
     BagError,
     BagFormatError,
@@ -29,7 +27,13 @@ from hil.bag.reader import BagReader, describe
 from hil.bag.recorder import Recorder, RecorderConfig
 from hil.bag.run_info import RunInfo
 from hil.core.samples import ImuSample, PoseSample
-from tests.bag.bag_streams import FOREIGN_BAGS, foreign_bag_paths, one_of_each, tree_digest
+from tests.bag.bag_streams import (
+    FOREIGN_BAGS,
+    foreign_bag_paths,
+    one_of_each,
+    tree_digest,
+    write_raw_mcap,
+)
 
 needs_foreign = pytest.mark.skipif(
     not FOREIGN_BAGS.is_dir(), reason=f"no foreign bags at {FOREIGN_BAGS}"
@@ -150,23 +154,6 @@ def test_reader_use_before_open(tmp_path: Path) -> None:
         _ = BagReader(tmp_path).info
 
 
-def _write_raw_mcap(path: Path, messages: list[tuple[str, int, bytes]]) -> None:
-    """Write messages as given (any order, any payload) to a ROS 2 MCAP file."""
-    with path.open("wb") as stream:
-        writer = McapWriter(stream)
-        writer.start(profile="ros2", library="test")
-        channels: dict[str, int] = {}
-        for topic, t_ns, payload in messages:
-            if topic not in channels:
-                msgtype = topics.TOPIC_TYPES[topic]
-                schema = writer.register_schema(
-                    msgtype, "ros2msg", ts.schema_text(msgtype).encode()
-                )
-                channels[topic] = writer.register_channel(topic, "cdr", schema)
-            writer.add_message(channels[topic], t_ns, payload, t_ns)
-        writer.finish()  # type: ignore[no-untyped-call]
-
-
 def _imu(t_ns: int, rate: float) -> tuple[str, int, bytes]:
     ((topic, payload),) = encode(ImuSample(t_ns, 0.0, 0.0, rate))
     return topic, t_ns, payload
@@ -174,7 +161,7 @@ def _imu(t_ns: int, rate: float) -> tuple[str, int, bytes]:
 
 def test_out_of_order_and_duplicate_times_come_out_sorted(tmp_path: Path) -> None:
     path = tmp_path / "shuffled.mcap"
-    _write_raw_mcap(path, [_imu(30, 3.0), _imu(10, 1.0), _imu(20, 2.0), _imu(20, 2.5)])
+    write_raw_mcap(path, [_imu(30, 3.0), _imu(10, 1.0), _imu(20, 2.0), _imu(20, 2.5)])
     with BagReader(path) as reader:
         got = [(t, r.yaw_rate_radps) for _, t, r in reader.records()]  # type: ignore[union-attr]
     assert got == [(10, 1.0), (20, 2.0), (20, 2.5), (30, 3.0)]
@@ -187,7 +174,7 @@ def test_nan_in_a_message_is_reported_or_skipped(tmp_path: Path) -> None:
     bad = bytearray(good)
     offset = len(good) - 43 * 8
     bad[offset : offset + 8] = struct.pack("<d", math.nan)
-    _write_raw_mcap(path, [(topic, 10, good), (topic, 20, bytes(bad)), (topic, 30, good)])
+    write_raw_mcap(path, [(topic, 10, good), (topic, 20, bytes(bad)), (topic, 30, good)])
     before = tree_digest(path)
     with (
         BagReader(path) as reader,

@@ -8,10 +8,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from mcap.writer import Writer as McapWriter
 
 from hil.bag import topics
-from hil.bag import typestore as ts
 from hil.bag.errors import BagNotFoundError, FrameError, NotAHilRunError
 from hil.bag.messages import Record, encode
 from hil.bag.recorder import RecorderConfig
@@ -28,6 +26,7 @@ from hil.core.samples import (
     VelocityReference,
 )
 from hil.core.shapes import Rect
+from tests.bag.bag_streams import write_raw_mcap
 
 MS = 1_000_000
 CONFIG = RecorderConfig(split_s=1e9, flush_s=1e9, threaded=False)
@@ -44,21 +43,11 @@ def _nan_pose(t_ns: int) -> bytes:
 
 def _mcap(path: Path, messages: list[tuple[int, Record | tuple[str, bytes]]]) -> Path:
     """Write a bare MCAP: each (log time ns, record or (topic, payload)) in the given order."""
-    with path.open("wb") as stream:
-        writer = McapWriter(stream)
-        writer.start(profile="ros2", library="test")
-        channels: dict[str, int] = {}
-        for log_ns, item in messages:
-            for topic, payload in encode(item) if not isinstance(item, tuple) else [item]:
-                if topic not in channels:
-                    msgtype = topics.TOPIC_TYPES[topic]
-                    schema = writer.register_schema(
-                        msgtype, "ros2msg", ts.schema_text(msgtype).encode()
-                    )
-                    channels[topic] = writer.register_channel(topic, "cdr", schema)
-                writer.add_message(channels[topic], log_ns, payload, log_ns)
-        writer.finish()  # type: ignore[no-untyped-call]
-    return path
+    return write_raw_mcap(path, [
+        (topic, log_ns, payload)
+        for log_ns, item in messages
+        for topic, payload in (encode(item) if not isinstance(item, tuple) else [item])
+    ])  # fmt: skip
 
 
 def _pose(k: int) -> PoseSample:

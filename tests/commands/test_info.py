@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import hashlib
 import json
 from pathlib import Path
 
@@ -13,13 +12,9 @@ from hil.bag.recorder import Recorder
 from hil.bag.run_info import RunInfo
 from hil.commands import info
 from hil.core.samples import ImuSample
+from tests.bag.bag_streams import tree_digest
 
 FOREIGN_BAGS = Path(__file__).resolve().parents[2].parent / "shared" / "foreign_bags"
-
-
-def tree_digest(path: Path) -> dict[str, str]:
-    files = [path] if path.is_file() else sorted(p for p in path.rglob("*") if p.is_file())
-    return {str(p): hashlib.sha256(p.read_bytes()).hexdigest() for p in files}
 
 
 def run_info(*argv: str) -> int:

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import hashlib
 import json
 import re
 import shutil
@@ -22,15 +21,11 @@ from hil.commands import replay
 from hil.commands.record_suite import write_bag
 from hil.core.records import Decision, StateEstimate
 from hil.core.samples import VelocityReference
+from tests.bag.bag_streams import tree_digest
 
 ROOT = Path(__file__).resolve().parents[2]
 LOG = ROOT / "logs" / "coarse-high-seed2"
 FOREIGN_BAGS = ROOT.parent / "shared" / "foreign_bags"
-
-
-def tree_digest(path: Path) -> dict[str, str]:
-    files = [path] if path.is_file() else sorted(p for p in path.rglob("*") if p.is_file())
-    return {str(p): hashlib.sha256(p.read_bytes()).hexdigest() for p in files}
 
 
 def run_replay(*argv: str) -> int:
