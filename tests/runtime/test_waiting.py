@@ -25,6 +25,7 @@ from hil.runtime.loop import Runtime, World
 from hil.runtime.report_age import ReportAgeBudget
 from hil.runtime.resynthesis import ResynthesisMode, Resynthesizer
 from hil.runtime.settings import LoopConfig
+from hil.runtime.stats import RunStats
 from hil.runtime.trace import MemoryLog
 from tests.runtime.test_low_level_pin import START, TrueVelocity
 
@@ -78,10 +79,10 @@ class WaitingController:
         return Answer(0, value, indices, staying, int(indices[pick(options)]), None)
 
 
-def test_a_lost_docking_is_waited_out_on_the_staying_inputs() -> None:
-    n_decisions = 6
-    world = SimWorld(SimConfig(start=START, seed=3), max_duration_s=2.0 * n_decisions + 5.0)
-    controller = WaitingController()
+def _run(config: SimConfig, controller: WaitingController, n_decisions: int,
+         report_ages: ReportAgeBudget | None) -> tuple[RunStats, MemoryLog]:
+    """Run the loop on `config`'s world for `n_decisions` decisions under `controller`."""
+    world = SimWorld(config, max_duration_s=2.0 * n_decisions + 5.0)
 
     def solve(layout: ObstacleLayout, report_age_s: float) -> WaitingController:
         return controller
@@ -95,8 +96,15 @@ def test_a_lost_docking_is_waited_out_on_the_staying_inputs() -> None:
         World(world.clock, world.pose, world.imu, world.obstacles, world.thrusters),
         TrueVelocity(world), low_level_for(loop.loop_hz),
         Resynthesizer(solve, ResynthesisMode.INLINE), lambda options: 0, log, loop,
+        report_ages=report_ages,
     )  # fmt: skip
-    stats = runtime.run()
+    return runtime.run(), log
+
+
+def test_a_lost_docking_is_waited_out_on_the_staying_inputs() -> None:
+    n_decisions = 6
+    controller = WaitingController()
+    stats, log = _run(SimConfig(start=START, seed=3), controller, n_decisions, None)
 
     assert stats.decisions == n_decisions
     assert stats.staying_decisions == STAYING[1] - STAYING[0]
@@ -124,17 +132,13 @@ LOST = (2, 5)
 class ClosingController(WaitingController):
     """Docking, then nothing safe for three decisions (no input listed), then docking."""
 
-    def decide(
-        self,
-        state: F,
-        reference: int,
-        first: bool,
-        previous: F,
-        select: Select,
-        wait_select: Select,
-    ) -> Answer:
-        n = self.decisions
-        self.decisions += 1
+    def __init__(self) -> None:
+        super().__init__()
+        self.asked = 0
+
+    def decide(self, *args: object) -> Answer:
+        n = self.asked
+        self.asked += 1
         if LOST[0] <= n < LOST[1]:
             return Answer(0, math.inf, np.zeros(0, dtype=np.int64), False, -1, None)
         return Answer(0, 3.0, np.array([3], dtype=np.int64), False, 3, None)
@@ -147,22 +151,10 @@ def test_a_closed_passage_is_waited_out_at_rest_only_where_obstacles_move(moving
     n_decisions = 7
     # A far obstacle reported every second (a zero motion): reports stay fresh.
     far = Rect(-3.0, -2.5, 2.0, 2.5)
-    world = SimWorld(SimConfig(start=START, seed=3, obstacles=(far,),
-                               motions=(ObstacleMotion(0, (0.0, 0.0), 0.0, 100.0),)),
-                     max_duration_s=2.0 * n_decisions + 5.0)  # fmt: skip
-    controller = ClosingController()
-    loop = LoopConfig(
-        resynthesis_period_s=None, max_duration_s=2.0 * n_decisions - 0.025,
-        observer_settle_s=0.0,
-    )  # fmt: skip
-    log = MemoryLog()
-    runtime = Runtime(
-        World(world.clock, world.pose, world.imu, world.obstacles, world.thrusters),
-        TrueVelocity(world), low_level_for(loop.loop_hz),
-        Resynthesizer(lambda layout, age: controller, ResynthesisMode.INLINE),
-        lambda options: 0, log, loop, report_ages=ReportAgeBudget(1.0, tracks=moving),
-    )  # fmt: skip
-    stats = runtime.run()
+    config = SimConfig(start=START, seed=3, obstacles=(far,),
+                       motions=(ObstacleMotion(0, (0.0, 0.0), 0.0, 100.0),))
+    stats, log = _run(config, ClosingController(), n_decisions,
+                      ReportAgeBudget(1.0, tracks=moving))
 
     codes = log.event_codes()
     if not moving:
