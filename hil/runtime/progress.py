@@ -91,7 +91,7 @@ class Progress:
         elif math.isinf(answer.value):
             self._not_winning(t_ns, eta_hat, answer.cell)
         lost = math.isinf(answer.value) and not answer.staying
-        if self._not_winning_before and not lost and self._stats.layout_waits:
+        if self._wait_for_layout and self._not_winning_before and math.isfinite(answer.value):
             self._event(t_ns, EventLevel.INFO, EventCode.DOCKING_BACK,
                         f"a layout wins again from {np.round(eta_hat, 3).tolist()}: docking on")
         self._not_winning_before = lost
@@ -105,18 +105,16 @@ class Progress:
         """
         s = self._stats
         s.not_winning_decisions += 1
+        waits = self._wait_for_layout and s.decisions > 0
+        if waits and self._not_winning_before:
+            return  # the wait goes on; said when it began
         state = np.round(eta_hat, 3).tolist()
-        if self._wait_for_layout and s.decisions > 0:
-            if not self._not_winning_before:
-                s.layout_waits += 1
-                self._event(
-                    t_ns, EventLevel.ERROR, EventCode.NOT_WINNING,
-                    f"state {state} outside the winning and the safety set; stopping, and "
-                    "waiting at rest for a layout that wins (obstacles move)",
-                )  # fmt: skip
-            return
+        then = ", and waiting at rest for a layout that wins (obstacles move)" if waits else ""
         self._event(t_ns, EventLevel.ERROR, EventCode.NOT_WINNING,
-                    f"state {state} outside the winning and the safety set; stopping")
+                    f"state {state} outside the winning and the safety set; stopping{then}")
+        if waits:
+            s.layout_waits += 1
+            return
         self.abort = not_winning_abort(
             state, cell < 0, s.decisions == 0, self._not_winning_before, self._period_s
         )
