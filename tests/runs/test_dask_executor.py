@@ -22,6 +22,7 @@ import pytest
 
 pytest.importorskip("distributed")
 
+from hil.controllers.symbolic.sources import ControllerSources
 from hil.runs.campaign import CampaignRun, sim_job
 from hil.runs.dask_executor import DaskExecutor
 from hil.runs.executor import LocalExecutor
@@ -126,9 +127,12 @@ def _open(cluster: Cluster) -> DaskExecutor:
     return dask
 
 
-def _without_wall_clock(run: CampaignRun) -> CampaignRun:
+def _without_process_facts(run: CampaignRun) -> CampaignRun:
+    """The run without what depends on the process that ran it: wall-clock times, and
+    where its controller came from (solved, the store, or a process that already held it)."""
     summary, violations = run
-    return replace(summary, wall_s=0.0, synthesis_mean_s=0.0, synthesis_max_s=0.0), violations
+    return replace(summary, wall_s=0.0, synthesis_mean_s=0.0, synthesis_max_s=0.0,
+                   sources=ControllerSources()), violations
 
 
 def test_dask_gives_the_local_summaries_and_streams_each_run(
@@ -140,8 +144,8 @@ def test_dask_gives_the_local_summaries_and_streams_each_run(
     assert out.complete
     assert not out.failures
     assert not out.stopped
-    assert [_without_wall_clock(r) for r in out.results if r is not None] == \
-        [_without_wall_clock(r) for r in local_runs]
+    assert [_without_process_facts(r) for r in out.results if r is not None] == \
+        [_without_process_facts(r) for r in local_runs]
     assert any(r[0].docked for r in local_runs)
     assert not all(r[0].docked for r in local_runs)
     lines = (tmp_path / "results.jsonl").read_text().splitlines()
@@ -175,8 +179,8 @@ def test_a_worker_killed_mid_campaign_loses_no_run(
     assert not out.failures
     assert not out.stopped
     assert sorted(ended) == list(range(len(SPECS)))
-    assert [_without_wall_clock(r) for r in out.results if r is not None] == \
-        [_without_wall_clock(r) for r in local_runs]
+    assert [_without_process_facts(r) for r in out.results if r is not None] == \
+        [_without_process_facts(r) for r in local_runs]
 
 
 def test_replay_on_the_cluster_ships_the_bags_and_gives_the_local_reports(
@@ -228,6 +232,6 @@ def test_a_lost_scheduler_keeps_the_finished_runs_and_a_resume_finishes(
     assert again.resumed == out.finished
     assert again.complete
     assert not again.failures
-    assert [_without_wall_clock(r) for r in again.results if r is not None] == \
-        [_without_wall_clock(r) for r in local_runs]
+    assert [_without_process_facts(r) for r in again.results if r is not None] == \
+        [_without_process_facts(r) for r in local_runs]
     assert len(path.read_text().splitlines()) == 1 + len(SPECS)
