@@ -87,7 +87,8 @@ class Synthesizer:
             controller and asks for more, allocate and map the next solve's result
             arrays (:class:`~hil.controllers.symbolic.levels.Outputs`, about 320 MB at
             the paper grid), so that the next layout's solve starts without page faults
-            (the re-synthesis beside a vessel's loop).
+            (the re-synthesis beside a vessel's loop), and a copy of its viable words
+            for the next layout to start from (:meth:`ViableWords.prepare`).
     """
 
     def __init__(
@@ -169,7 +170,8 @@ class Synthesizer:
             + 2 * nx * ny * npsi * 4  # the controller's values from rest, and a layer's
             + (self._viable.f_layers + 1) * (nx + 2 * px) * (nw + 2 * pw) * 8
             + m * npsi * (nw + 2 * pw) * (nx + 2 * px) * 8 * (3 if self._prepare else 1)
-            + (N_PLANES * rows_words if self._prepare else 0)  # the next solve's outputs
+            + ((N_PLANES + N_CLASSES) * rows_words if self._prepare else 0)  # the next
+            # solve's outputs and viable words, prepared
             + (N_CLASSES - 1 + 3 + N_PLANES + 2 * (self._threads or _max_threads()) / npsi)
             * rows_words
         )
@@ -255,6 +257,8 @@ class Synthesizer:
                 f"cells, {s.free_cells!r} free cells, {int(obstacles.sum())!r} obstacle cells"
             )
         yield controller
+        if self._prepare:
+            self._viable.prepare()
         if self._prepare and self._ready is None:
             nx, ny, npsi = self._tables.grid.shape
             ready = Outputs.allocate(self._tables.n_inputs, npsi, (ny + 63) // 64, nx,
@@ -270,6 +274,8 @@ class Synthesizer:
         this one" sets the previous layout here.
         """
         self._viable.words(problem.free_masks(self._psi_lo, self._psi_hi))
+        if self._prepare:
+            self._viable.prepare()
 
     def wait_stored(self) -> None:
         """Block until every controller this synthesizer solved is written to the store."""
