@@ -259,12 +259,12 @@ class Synthesizer:
         yield controller
         if self._prepare:
             self._viable.prepare()
-        if self._prepare and self._ready is None:
-            nx, ny, npsi = self._tables.grid.shape
-            ready = Outputs.allocate(self._tables.n_inputs, npsi, (ny + 63) // 64, nx,
-                                     self._pads, N_PLANES)
-            with self._reuse_lock:
-                self._ready = ready
+            if self._ready is None:
+                nx, ny, npsi = self._tables.grid.shape
+                ready = Outputs.allocate(self._tables.n_inputs, npsi, (ny + 63) // 64, nx,
+                                         self._pads, N_PLANES)
+                with self._reuse_lock:
+                    self._ready = ready
 
     def start_from(self, problem: SymbolicProblem) -> None:
         """Make `problem`'s layout the one the next solve starts from, without solving it.
