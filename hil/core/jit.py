@@ -68,6 +68,16 @@ def njit(fn: F) -> F:
     return cast(F, numba.njit(cache=True, nogil=True)(fn))
 
 
+def njit_inline(fn: F) -> F:
+    """Like :func:`njit`, and inlined into each numba caller (numba IR, before LLVM).
+
+    For the steps of a hot kernel: a call of a compiled function passes every array as
+    a struct and counts its references, 20-50 ns that thousands of short loops per BFS
+    level would pay (a split box test ran 6 % slower per level without it).
+    """
+    return cast(F, numba.njit(cache=True, nogil=True, inline="always")(fn))
+
+
 def njit_parallel(fn: F) -> F:
     """Like :func:`njit` but allows `numba.prange` loops over threads."""
     return cast(F, numba.njit(cache=True, nogil=True, parallel=True)(fn))

@@ -13,116 +13,148 @@ from numpy.typing import NDArray
 
 from hil.controllers.symbolic.frontier_kernel import shifted
 from hil.core.arrays import U64Array
-from hil.core.jit import njit
+from hil.core.jit import njit, njit_inline
 
 I32Array = NDArray[np.int32]
 
-__all__ = ["box_test", "changed_band", "row_ends"]
+__all__ = ["box_scratch", "box_test", "changed_band", "row_ends"]
 
 _ZERO = np.uint64(0)
 
 
 @njit
+def box_scratch(nw: int, xp: int) -> tuple[U64Array, U64Array, U64Array]:
+    """Return box_test's scratch H ((nw + 2) xp), L and R (nw xp) for words of xp x rows."""
+    H = np.empty((nw + 2) * xp, dtype=np.uint64)
+    L = np.empty(nw * xp, dtype=np.uint64)
+    R = np.empty(nw * xp, dtype=np.uint64)
+    return H, L, R
+
+
+@njit
 def box_test(
-    Wt: U64Array,
-    u: int,
-    k0: int,
-    h0: int,
-    h1: int,
-    box: I32Array,
-    lo: int,
-    hi: int,
-    px: int,
-    pw: int,
-    H: U64Array,
-    L: U64Array,
-    R: U64Array,
-    out: U64Array,
-) -> None:
+    Wt: U64Array, u: int, k0: int, h0: int, h1: int, box: I32Array, lo: int, hi: int,
+    px: int, pw: int, H: U64Array, L: U64Array, R: U64Array, out: U64Array,
+) -> None:  # fmt: skip
     """Fill out[w, i], i in [lo, hi]: whether the successor box of (i, 64 w + b, k0) is in Wt[u].
 
-    H (nw + 2, nx + 2 px), L, R (nw, nx + 2 px) and out (nw, nx) are scratch / result.
-    Separable: heading AND, then y shift and erosion, then the x window. Loops run over
-    slice views from index 0 (a provably non-negative index lets LLVM vectorize them).
+    Wt (m, npsi, nw + 2 pw, nx + 2 px) as :mod:`planes_kernel` lays it out; box (ox0,
+    ox1, oy0, oy1) the x and y offsets, h0 .. h1 the headings of the box; H, L, R from
+    :func:`box_scratch`, out (nw, nx). Separable: heading AND, then y shift and erosion,
+    then the x window. The scratch holds the band's nxh x rows of each word back to back
+    (word w at w nxh), so that the y and x steps are each one loop over every word's rows
+    (the band is short, 20-60 rows: one loop of nw nxh beats nw loops of nxh, 7 % of a
+    level). Loops run over slice views from index 0 (a provably non-negative index lets
+    LLVM vectorize them).
     """
-    npsi = Wt.shape[1]
     nw = out.shape[0]
     ox0, ox1, oy0, oy1 = box[0], box[1], box[2], box[3]
     xa = px + lo + ox0
     xb = px + hi + ox1 + 1
     nxh = xb - xa
-    a = pw + (oy0 >> 6)
-    s = np.uint64(oy0 & 63)
-    k = (k0 + h0) % npsi
+    _heading_and(Wt, u, k0, h0, h1, pw + (oy0 >> 6), xa, xb, pw, nw, H)
+    _erode_y(H, L, R, nw * nxh, nxh, np.uint64(oy0 & 63), oy1 - oy0 + 1)
+    nbx = ox1 - ox0 + 1
+    E, span = _window_x(L, R, nw * nxh, nbx)
+    # E's row i of word w: the AND over x rows i .. i + span - 1; two such cover nbx.
+    nb = hi + 1 - lo
+    for w in range(nw):
+        ow = out[w, lo : hi + 1]
+        e0 = E[w * nxh : w * nxh + nb]
+        e1 = E[w * nxh + nbx - span : w * nxh + nbx - span + nb]
+        for i in range(nb):
+            ow[i] = e0[i] & e1[i]
+
+
+@njit_inline
+def _heading_and(
+    Wt: U64Array, u: int, k0: int, h0: int, h1: int, a: int, xa: int, xb: int, pw: int,
+    nw: int, H: U64Array,
+) -> None:  # fmt: skip
+    """Fill H[q nxh + x], q < nw + 2: the AND over headings k0 + h0 .. k0 + h1 of Wt[u, k].
+
+    Row q of H is word a + q over x rows xa .. xb - 1, zero where a + q is a padding
+    word (outside the grid). Two headings per pass: the first with the last, then pairs
+    (an odd one paired with itself).
+    """
+    npsi = Wt.shape[1]
+    nxh = xb - xa
+    nh = h1 - h0 + 1
+    ka = (k0 + h0) % npsi
+    kz = (k0 + h1) % npsi
     for q in range(nw + 2):
-        dst = H[q, :nxh]
-        if a + q < pw or a + q >= pw + nw:  # a padding word: zero in every heading row
+        dst = H[q * nxh : (q + 1) * nxh]
+        if a + q < pw or a + q >= pw + nw:
             for x in range(nxh):
                 dst[x] = _ZERO
             continue
-        src = Wt[u, k, a + q, xa:xb]
+        s0 = Wt[u, ka, a + q, xa:xb]
+        s1 = Wt[u, kz, a + q, xa:xb]
         for x in range(nxh):
-            dst[x] = src[x]
-    for ok in range(h0 + 1, h1 + 1):
-        k = (k0 + ok) % npsi
-        for q in range(nw + 2):
-            if a + q < pw or a + q >= pw + nw:
-                continue
-            src = Wt[u, k, a + q, xa:xb]
-            dst = H[q, :nxh]
+            dst[x] = s0[x] & s1[x]
+        ok = 1
+        while ok < nh - 1:
+            s1 = Wt[u, (k0 + h0 + ok) % npsi, a + q, xa:xb]
+            s2 = Wt[u, (k0 + h0 + min(ok + 1, nh - 2)) % npsi, a + q, xa:xb]
             for x in range(nxh):
-                dst[x] &= src[x]
-    for w in range(nw):
-        h_0 = H[w, :nxh]
-        h_1 = H[w + 1, :nxh]
-        h_2 = H[w + 2, :nxh]
-        lw = L[w, :nxh]
-        rw = R[w, :nxh]
-        for x in range(nxh):
-            lw[x] = shifted(h_0[x], h_1[x], s)
-            rw[x] = shifted(h_1[x], h_2[x], s)
-    n = oy1 - oy0 + 1
+                dst[x] &= s1[x] & s2[x]
+            ok += 2
+
+
+@njit_inline
+def _erode_y(
+    H: U64Array, L: U64Array, R: U64Array, n2: int, nxh: int, s: np.uint64, n: int
+) -> None:
+    """Fill L[:n2] with bits s .. s + 63 of H's word pairs (q, q + 1), eroded over n cells.
+
+    L's bit b of word w: all of cells 64 w + b + s .. + n - 1 (in word pairs of H, a
+    128-bit window); R holds the upper word of each pair, eroded alongside, by doubling.
+    """
+    hv0 = H[:n2]
+    hv1 = H[nxh : nxh + n2]
+    hv2 = H[2 * nxh : 2 * nxh + n2]
+    lf = L[:n2]
+    rf = R[:n2]
+    for x in range(n2):
+        lf[x] = shifted(hv0[x], hv1[x], s)
+        rf[x] = shifted(hv1[x], hv2[x], s)
     span = 1
     while 2 * span <= n:
         d = np.uint64(span)
-        for w in range(nw):
-            lw = L[w, :nxh]
-            rw = R[w, :nxh]
-            for x in range(nxh):
-                lv = lw[x]
-                rv = rw[x]
-                lw[x] = lv & shifted(lv, rv, d)
-                rw[x] = rv & (rv >> d)
+        for x in range(n2):
+            lv = lf[x]
+            rv = rf[x]
+            lf[x] = lv & shifted(lv, rv, d)
+            rf[x] = rv & (rv >> d)
         span *= 2
     if n > span:
         d = np.uint64(n - span)
-        for w in range(nw):
-            lw = L[w, :nxh]
-            rw = R[w, :nxh]
-            for x in range(nxh):
-                lw[x] = lw[x] & shifted(lw[x], rw[x], d)
-    # The x window by doubling: E_2s(x) = E_s(x) and E_s(x + s), ping-pong in L and R.
-    nb = hi + 1 - lo
-    nbx = ox1 - ox0 + 1
-    for w in range(nw):
-        src_e = L[w]
-        dst_e = R[w]
-        span = 1
-        valid = nxh
-        while 2 * span <= nbx:
-            valid -= span
-            e0 = src_e[:valid]
-            e1 = src_e[span : span + valid]
-            d = dst_e[:valid]
-            for x in range(valid):
-                d[x] = e0[x] & e1[x]
-            src_e, dst_e = dst_e, src_e
-            span *= 2
-        ow = out[w, lo : hi + 1]
-        e0 = src_e[:nb]
-        e1 = src_e[nbx - span : nbx - span + nb]
-        for i in range(nb):
-            ow[i] = e0[i] & e1[i]
+        for x in range(n2):
+            lf[x] = lf[x] & shifted(lf[x], rf[x], d)
+
+
+@njit_inline
+def _window_x(L: U64Array, R: U64Array, n2: int, nbx: int) -> tuple[U64Array, int]:
+    """AND each row with the next ones by doubling, ping-pong in L and R; return (E, span).
+
+    E (L or R): row x is the AND of rows x .. x + span - 1 (span the largest power of 2
+    <= nbx), valid where x + span - 1 lies in the same word's rows. A flat pass also
+    computes rows that mix two words' rows; those are never read as valid.
+    """
+    src = L
+    dst = R
+    span = 1
+    valid = n2
+    while 2 * span <= nbx:
+        valid -= span
+        e0 = src[:valid]
+        e1 = src[span : span + valid]
+        d = dst[:valid]
+        for x in range(valid):
+            d[x] = e0[x] & e1[x]
+        src, dst = dst, src
+        span *= 2
+    return src, span
 
 
 @njit

@@ -47,9 +47,9 @@ import numpy as np
 from numba import prange
 from numpy.typing import NDArray
 
-from hil.controllers.symbolic.box_test import box_test, changed_band, row_ends
+from hil.controllers.symbolic.box_test import box_scratch, box_test, changed_band, row_ends
 from hil.core.arrays import U64Array
-from hil.core.jit import njit, njit_parallel
+from hil.core.jit import njit, njit_inline, njit_parallel
 
 I32Array = NDArray[np.int32]
 
@@ -155,9 +155,7 @@ def _sweep_input(
     nw = Bt.shape[2]
     nx = Bt.shape[3]
     xp = Wt.shape[3]
-    H = np.empty((nw + 2, xp), dtype=np.uint64)
-    L = np.empty((nw, xp), dtype=np.uint64)
-    R = np.empty((nw, xp), dtype=np.uint64)
+    H, L, R = box_scratch(nw, xp)
     out = np.empty((nw, nx), dtype=np.uint64)
     rows = np.empty(nx, dtype=np.uint64)
     for k0 in range(npsi):
@@ -279,7 +277,6 @@ def _apply_heading(
     m = Wt.shape[0]
     nw = nA.shape[2]
     nx = nA.shape[3]
-    px, pw = pads[0], pads[2]
     n_c = lattice[2]
     n_b = lattice[1]
     n_a = lattice[0]
@@ -291,54 +288,91 @@ def _apply_heading(
     for p in range(m):
         ch[p, k, 0] = nx
         ch[p, k, 1] = -1
-        a0 = band_a[p, k, 0]
-        a1 = band_a[p, k, 1]
-        d0 = band_1[p, 0]
-        d1 = band_1[p, 1]
+        a0, a1 = band_a[p, k, 0], band_a[p, k, 1]
+        d0, d1 = band_1[p, 0], band_1[p, 1]
         lo = min(a0, d0)
         hi = max(a1, d1)
         if lo > hi:
             continue
-        nb = hi + 1 - lo
-        anyf = _ZERO
-        for w in range(nw):
-            aw = acc[w, :nb]
-            for i in range(nb):
-                aw[i] = _ZERO
-            _or_into(aw, nA[k, p, w], lo, a0, a1)
-            _or_into(aw, D1[p, w], lo, d0, d1)
-            cur = Wt[p, k, pw + w, px + lo : px + hi + 1]
-            for i in range(nb):
-                f = aw[i] & ~cur[i]
-                aw[i] = f
-                cur[i] |= f
-                anyf |= f
-        if anyf == _ZERO:
+        if not _join_rows(acc, nA[k, p], (a0, a1), D1[p], (d0, d1), Wt[p, k], lo, hi, pads):
             continue
-        for w in range(nw):
-            aw = acc[w, :nb]
-            q = 0
-            lv = level
-            while lv > 0:
-                if lv & 1:
-                    pq = Pt[p, k, w, q, lo : hi + 1]
-                    for i in range(nb):
-                        pq[i] |= aw[i]
-                lv >>= 1
-                q += 1
-        first = nx
-        last = -1
-        for t in range(nb):
-            row = _ZERO
-            for w in range(nw):
-                row |= acc[w, t]
-            if row != _ZERO:
-                n_changed += 1
-                first = min(first, lo + t)
-                last = lo + t
+        _set_planes(Pt[p, k], acc, lo, hi, level)
+        first, last, n = _changed_rows(acc, lo, hi + 1 - lo)
+        n_changed += n
         ch[p, k, 0] = first
         ch[p, k, 1] = last
     return n_changed
+
+
+@njit_inline
+def _join_rows(
+    acc: U64Array, new_a: U64Array, band_new_a: tuple[int, int], dilated_b: U64Array,
+    band_dilated_b: tuple[int, int], Wt_pk: U64Array, lo: int, hi: int, pads: I32Array,
+) -> bool:  # fmt: skip
+    """Join rows [lo, hi] of one layer and heading: acc = (nA | dilated nB) and not W; W |= acc.
+
+    new_a, dilated_b (nw, nx) with their bands [lo, hi]; Wt_pk (nw + 2 pw, nx + 2 px) the
+    layer's winning words at this heading; acc (nw, nx) gets the states that joined in
+    its first hi + 1 - lo rows. Return whether any did.
+    """
+    px, pw = pads[0], pads[2]
+    nb = hi + 1 - lo
+    joined = _ZERO
+    for w in range(acc.shape[0]):
+        aw = acc[w, :nb]
+        for i in range(nb):
+            aw[i] = _ZERO
+        _or_into(aw, new_a[w], lo, band_new_a[0], band_new_a[1])
+        _or_into(aw, dilated_b[w], lo, band_dilated_b[0], band_dilated_b[1])
+        cur = Wt_pk[pw + w, px + lo : px + hi + 1]
+        for i in range(nb):
+            f = aw[i] & ~cur[i]
+            aw[i] = f
+            cur[i] |= f
+            joined |= f
+    return bool(joined != _ZERO)
+
+
+@njit_inline
+def _set_planes(Pt_pk: U64Array, acc: U64Array, lo: int, hi: int, level: int) -> None:
+    """Set the value bit planes Pt_pk (nw, n_planes, nx) of acc's states to `level`.
+
+    acc (nw, nx) holds rows lo .. hi from index 0; a plane q gets them where bit q of
+    level is set (the others stay zero: the states are new).
+    """
+    nb = hi + 1 - lo
+    for w in range(acc.shape[0]):
+        aw = acc[w, :nb]
+        q = 0
+        lv = level
+        while lv > 0:
+            if lv & 1:
+                pq = Pt_pk[w, q, lo : hi + 1]
+                for i in range(nb):
+                    pq[i] |= aw[i]
+            lv >>= 1
+            q += 1
+
+
+@njit_inline
+def _changed_rows(acc: U64Array, lo: int, nb: int) -> tuple[int, int, int]:
+    """Return (first, last, count) of the rows lo + t, t < nb, where acc (nw, nx) has a bit.
+
+    (-1, -1, 0): none.
+    """
+    first = -1
+    last = -1
+    n = 0
+    for t in range(nb):
+        row = _ZERO
+        for w in range(acc.shape[0]):
+            row |= acc[w, t]
+        if row != _ZERO:
+            n += 1
+            if first < 0:
+                first = lo + t
+            last = lo + t
+    return first, last, n
 
 
 @njit

@@ -31,7 +31,7 @@ import numpy as np
 from numba import prange
 from numpy.typing import NDArray
 
-from hil.controllers.symbolic.box_test import box_test, changed_band
+from hil.controllers.symbolic.box_test import box_scratch, box_test, changed_band
 from hil.core.arrays import U64Array
 from hil.core.jit import njit, njit_parallel
 
@@ -103,9 +103,7 @@ def _test_input(
     nw = At.shape[2]
     nx = At.shape[3]
     xp = St.shape[3]
-    H = np.empty((nw + 2, xp), dtype=np.uint64)
-    L = np.empty((nw, xp), dtype=np.uint64)
-    R = np.empty((nw, xp), dtype=np.uint64)
+    H, L, R = box_scratch(nw, xp)
     out = np.empty((nw, nx), dtype=np.uint64)
     for k0 in range(npsi):
         for c in range(2):
