@@ -9,8 +9,10 @@ anyway, and the settings pytest missed are applied from pyproject.toml.
 
 from __future__ import annotations
 
+import signal
 import sys
 import tomllib
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -29,3 +31,18 @@ def pytest_configure(config: pytest.Config) -> None:
     for name in ("markers", "filterwarnings"):
         for line in ini.get(name, []):
             config.addinivalue_line(name, line)
+
+
+@pytest.fixture(autouse=True)
+def _sigint_left_as_found() -> Iterator[None]:
+    """Fail a test that leaves Ctrl-C handled otherwise than it found it (then restore it).
+
+    Tests share their process with the tests after them (an xdist worker): a handler left
+    behind would change what a later test's SIGINT does (the Ctrl-C tests).
+    """
+    before = signal.getsignal(signal.SIGINT)
+    yield
+    after = signal.getsignal(signal.SIGINT)
+    if after is not before:
+        signal.signal(signal.SIGINT, before)
+        pytest.fail(f"the test left SIGINT handled by {after!r} (found {before!r})")

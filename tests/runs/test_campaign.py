@@ -1,4 +1,5 @@
 import math
+from collections.abc import Iterator
 from dataclasses import replace
 
 import numpy as np
@@ -138,7 +139,24 @@ def test_moving_starts_are_seeded_in_the_input_box_and_leave_the_starts_alone() 
         campaign_specs(SimRunSpec(scenario="coarse"), [(0.25, -0.75, 0.0)], velocities=[])
 
 
+@pytest.fixture
+def ctrl_c_raises() -> Iterator[None]:
+    """SIGINT raises KeyboardInterrupt, as in a command started from a terminal.
+
+    A process started in the background by a shell without job control (`cmd &` in a
+    script, some CI runners) inherits SIGINT ignored, and Python then leaves it ignored.
+    """
+    import signal
+
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 @pytest.mark.parametrize("workers", [1, 2])
+@pytest.mark.usefixtures("ctrl_c_raises")
 def test_a_stopped_campaign_keeps_its_finished_runs(workers: int) -> None:
     import os
     import signal
