@@ -129,23 +129,44 @@ def _qtm_pose(source: QtmPoseSource) -> _PoseFeed:
                      source.wait_first, waiting, lambda: source.counters.poses)
 
 
-def _wait_for_pose(pose: _PoseFeed, feeds: FeedWatch, progress: Progress) -> str | None:
-    """Block until the first pose arrives; return why it stopped waiting (a signal), or None.
+class _SignalStop:
+    """Where SIGINT and SIGTERM go from the first synthesis to the loop's end: a clean stop.
+
+    Each asks the runtime to stop at its next tick (before the loop starts: at its first),
+    the reason naming the phase it came in (:attr:`phase`), so a signal while synthesizing,
+    waiting for the first pose or measuring its rate closes the log like one mid-run,
+    instead of killing the process with the bag open.
+    """
+
+    def __init__(self, runtime: Runtime) -> None:
+        self._runtime = runtime
+        self.phase = " while synthesizing"
+        """Said after the signal's name in the stop's reason ("" once the loop runs)."""
+        self.requested = False
+        """A signal came."""
+
+    def __call__(self, reason: str) -> None:
+        self.requested = True
+        self._runtime.request_stop(reason + self.phase)
+
+
+def _wait_for_pose(pose: _PoseFeed, feeds: FeedWatch, progress: Progress,
+                   stop: _SignalStop) -> None:
+    """Block until the first pose arrives or a signal came.
 
     Each new reason the feeds are refused for is said at once (with its fix); every
     :data:`STATUS_PERIOD_S` a reminder says what the pose feed delivered.
     """
-    stopped: list[str] = []
+    if stop.requested:
+        return
     progress(f"waiting for pose {pose.where}...")
     waited_s = 0.0
-    with stop_on_signals(stopped.append):
-        while not stopped and not pose.wait_first(0.1):
-            feeds.poll()
-            waited_s += 0.1
-            if waited_s >= STATUS_PERIOD_S:
-                waited_s = 0.0
-                progress(f"still waiting for pose {pose.where}: {pose.waiting()}")
-    return stopped[0] if stopped else None
+    while not stop.requested and not pose.wait_first(0.1):
+        feeds.poll()
+        waited_s += 0.1
+        if waited_s >= STATUS_PERIOD_S:
+            waited_s = 0.0
+            progress(f"still waiting for pose {pose.where}: {pose.waiting()}")
 
 
 def _telemetry(closing: ExitStack, ros: RosWorld, log: RunLog) -> RunLog:
@@ -257,24 +278,23 @@ def run_on_ros(config: VesselConfig, out_dir: Path | None = None,
             log.watch(runtime, feed_view, config.ros.node_name)
         # Compile and synthesize before the loop starts, so its first ticks keep time.
         progress("synthesizing the controller...")
-        # A signal while synthesizing (seconds) stops the run at its first tick, with
-        # the log closed, instead of killing the process with the bag open.
-        early: list[str] = []
-        with stop_on_signals(early.append):
-            warm_up_kernels(config.loop.loop_hz)
-            runtime.resynthesizer.submit(obstacles.latest(), runtime.report_ages.next_s())
-            runtime.resynthesizer.wait_idle()
+        stop = _SignalStop(runtime)
         try:
-            stopped = early[0] if early else _wait_for_pose(pose, feeds, progress)
-            if stopped is not None:
-                runtime.request_stop(f"{stopped} while waiting for pose")
-            elif refusal := _slower_than_premise(pose, config, log, ros.clock.now_ns):
-                raise ConfigError(refusal)
-            else:
-                progress(f"running: recording to {out_dir}")
-            with stop_on_signals(runtime.request_stop), \
-                    _status_every(STATUS_PERIOD_S, runtime, feeds, progress):
-                stats = runtime.run()
+            with stop_on_signals(stop):
+                warm_up_kernels(config.loop.loop_hz)
+                runtime.resynthesizer.submit(obstacles.latest(), runtime.report_ages.next_s())
+                runtime.resynthesizer.wait_idle()
+                stop.phase = " while waiting for pose"
+                _wait_for_pose(pose, feeds, progress, stop)
+                if not stop.requested and (
+                    refusal := _slower_than_premise(pose, config, log, ros.clock.now_ns)
+                ):
+                    raise ConfigError(refusal)
+                stop.phase = ""
+                if not stop.requested:
+                    progress(f"running: recording to {out_dir}")
+                with _status_every(STATUS_PERIOD_S, runtime, feeds, progress):
+                    stats = runtime.run()
         finally:
             runtime.resynthesizer.close()
         refused = feeds.summary()

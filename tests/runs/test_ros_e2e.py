@@ -150,3 +150,57 @@ domain_id = {domain}
     commands = [r for _, _, r in records if isinstance(r, ThrusterCommand)]
     last = commands[-1]
     assert (last.tunnel, last.port, last.starboard) == (0.0, 0.0, 0.0)
+
+
+# `hil vessel` with a SIGTERM sent to itself as the pose feed's rate window opens (after
+# the first pose, before the loop's first tick): the moment no handler covered before.
+_SIGTERM_IN_THE_RATE_WINDOW = """
+import os, signal, sys
+import hil.runs.vessel_run as vessel_run
+from hil.cli import main
+
+measure = vessel_run.measure_rate
+
+def measure_after_a_sigterm(*args, **kwargs):
+    os.kill(os.getpid(), signal.SIGTERM)
+    return measure(*args, **kwargs)
+
+vessel_run.measure_rate = measure_after_a_sigterm
+raise SystemExit(main(sys.argv[1:]))
+"""
+
+
+def test_a_sigterm_before_the_first_tick_closes_the_log(tmp_path: Path) -> None:
+    domain = 150 + (os.getpid() + 20) % 80
+    config = tmp_path / "vessel.toml"
+    config.write_text(f"""
+scenario = "coarse"
+[ros]
+domain_id = {domain}
+""")
+    out = tmp_path / "run"
+    vessel = subprocess.Popen(
+        [*HIL, "sim-vessel", "coarse", "--domain-id", str(domain)],
+        env=dds_env(domain), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+    )  # fmt: skip
+    try:
+        stack = subprocess.run(
+            [sys.executable, "-c", _SIGTERM_IN_THE_RATE_WINDOW, "vessel", "--config",
+             str(config), "--out", str(out)],
+            env=dds_env(domain), capture_output=True, text=True, timeout=120, check=False,
+        )  # fmt: skip
+    finally:
+        stop(vessel)
+    assert stack.returncode in (0, 1), stack.stderr[-3000:]
+    assert "stopped: stopped by SIGTERM while waiting for pose" in stack.stderr
+    assert "running: recording" not in stack.stderr
+    with BagReader(out) as reader:
+        records = list(reader.records(["/hil/events", "/hil/thrusters"]))
+    events = [r for _, _, r in records if isinstance(r, Event)]
+    assert [e.text for e in events if e.code == "stopped"] == [
+        "stopped by SIGTERM while waiting for pose"
+    ]
+    # Braked to rest from where it lay (or cut where there was nothing to brake), thrust off.
+    assert events[-1].code in ("stopped", "at_rest")
+    last = [r for _, _, r in records if isinstance(r, ThrusterCommand)][-1]
+    assert (last.tunnel, last.port, last.starboard) == (0.0, 0.0, 0.0)
