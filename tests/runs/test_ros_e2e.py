@@ -99,21 +99,28 @@ resynthesis_period_s = 20.0
     assert info.run.backend == "ros"
 
 
-def test_sigterm_zeroes_thrust_and_closes_the_log(tmp_path: Path) -> None:
-    domain = 150 + (os.getpid() + 40) % 80
+def _coarse_vessel(tmp_path: Path, domain: int) -> tuple[Path, subprocess.Popen[bytes]]:
+    """Write a vessel config of the coarse scenario on `domain`; start `hil sim-vessel` there.
+
+    Returns the config's path and the simulated vessel's process (stop it with `stop`).
+    """
     config = tmp_path / "vessel.toml"
     config.write_text(f"""
 scenario = "coarse"
 [ros]
 domain_id = {domain}
 """)
-    out = tmp_path / "run"
     vessel = subprocess.Popen(
         [*HIL, "sim-vessel", "coarse", "--domain-id", str(domain)],
-        env=dds_env(domain),
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
+        env=dds_env(domain), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+    )  # fmt: skip
+    return config, vessel
+
+
+def test_sigterm_zeroes_thrust_and_closes_the_log(tmp_path: Path) -> None:
+    domain = 150 + (os.getpid() + 40) % 80
+    config, vessel = _coarse_vessel(tmp_path, domain)
+    out = tmp_path / "run"
     stack = subprocess.Popen(
         [*HIL, "vessel", "--config", str(config), "--out", str(out)],
         env=dds_env(domain),
@@ -172,17 +179,8 @@ raise SystemExit(main(sys.argv[1:]))
 
 def test_a_sigterm_before_the_first_tick_closes_the_log(tmp_path: Path) -> None:
     domain = 150 + (os.getpid() + 20) % 80
-    config = tmp_path / "vessel.toml"
-    config.write_text(f"""
-scenario = "coarse"
-[ros]
-domain_id = {domain}
-""")
+    config, vessel = _coarse_vessel(tmp_path, domain)
     out = tmp_path / "run"
-    vessel = subprocess.Popen(
-        [*HIL, "sim-vessel", "coarse", "--domain-id", str(domain)],
-        env=dds_env(domain), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-    )  # fmt: skip
     try:
         stack = subprocess.run(
             [sys.executable, "-c", _SIGTERM_IN_THE_RATE_WINDOW, "vessel", "--config",
