@@ -89,3 +89,66 @@ class WallClock:
         remaining_ns = t_ns - self.now_ns()
         if remaining_ns > 0:
             self._sleep(remaining_ns * 1e-9)
+
+
+class WallAnchor:
+    """Simulated time held to a wall clock: it sleeps when ahead and slips when far off.
+
+    Simulated time t is due on the wall at ``wall_at_anchor + (t - t_at_anchor) / speed``.
+    When the wall clock is more than `slip_ns` from that (the process was starved, or the
+    system clock was set), the map is anchored anew at the present: the samples' stamps
+    show a gap. Catching up instead would crowd many simulated periods into a burst, and
+    keeping the lag would read as sensor latency to whoever compares stamps with its own
+    clock.
+
+    Args:
+        wall_ns: The wall clock (ns), e.g. :func:`time.time_ns` (the ROS system clock:
+            stamps a receiver compares with its own) or :func:`time.monotonic_ns`.
+        t_ns: Simulated time at the first anchor (ns), made when the map is first used.
+        speed: Simulated seconds per wall second, > 0.
+        slip_ns: How far off the wall clock may be before the map is anchored anew (ns).
+        sleep: The sleep function (seconds); injectable for tests.
+    """
+
+    def __init__(self, wall_ns: Callable[[], int], t_ns: int, speed: float = 1.0,
+                 slip_ns: int = 20_000_000, sleep: Callable[[float], None] = time.sleep) -> None:
+        if not speed > 0:
+            raise ValueError(f"speed must be positive, got {speed!r}")
+        if slip_ns <= 0:
+            raise ValueError(f"slip_ns must be positive, got {slip_ns!r}")
+        self._wall_ns = wall_ns
+        self._speed = float(speed)
+        self._slip_ns = int(slip_ns)
+        self._sleep = sleep
+        self.slips = 0
+        """How many times the map was anchored anew after the first."""
+        self.slipped_ns = 0
+        """The wall time the slips skipped (ns; a clock set back counts negative)."""
+        self._t_anchor_ns = int(t_ns)
+        self._wall_anchor_ns: int | None = None
+
+    def _anchor(self, t_ns: int) -> None:
+        self._t_anchor_ns = int(t_ns)
+        self._wall_anchor_ns = int(self._wall_ns())
+
+    def wall_of(self, t_ns: int) -> int:
+        """Return the wall time (ns) at which simulated time `t_ns` is due on the present map.
+
+        The first call anchors the map (a slow first step, e.g. a compilation, is no slip).
+        """
+        if self._wall_anchor_ns is None:
+            self._wall_anchor_ns = int(self._wall_ns())
+        return self._wall_anchor_ns + round((t_ns - self._t_anchor_ns) / self._speed)
+
+    def wait_for(self, t_ns: int) -> None:
+        """Sleep until simulated time `t_ns` is due; anchor anew if the wall is `slip_ns` off.
+
+        Behind by less than `slip_ns`, it returns at once (the next periods catch up).
+        """
+        ahead_ns = self.wall_of(t_ns) - self._wall_ns()
+        if abs(ahead_ns) > self._slip_ns:
+            self.slips += 1
+            self.slipped_ns -= ahead_ns
+            self._anchor(t_ns)
+        elif ahead_ns > 0:
+            self._sleep(ahead_ns / NS_PER_S)

@@ -25,11 +25,13 @@ from hil.adapters.ros import (
     thruster_command_from_components,
 )
 from hil.adapters.sim import SimWorld
-from hil.core.clock import NS_PER_S, fill_stamp
+from hil.core.clock import NS_PER_S, WallAnchor, fill_stamp
 from hil.core.samples import ThrusterCommand
 
 # Simulated time advanced per publication cycle (s).
 _CYCLE_S = 0.01
+# Cycles the wall clock may be off before simulated time is anchored anew (a slip).
+_SLIP_CYCLES = 2
 # Wall seconds between status lines.
 STATUS_PERIOD_S = 5.0
 
@@ -65,16 +67,26 @@ class SimVesselNode:
         self._progress: Callable[[str], None] = _quiet
         self.stopped_by: str | None = None
         """What stopped the node (a signal's name), set by whoever calls :meth:`stop`."""
+        self._wall: WallAnchor | None = None
 
     def stop(self) -> None:
         """Ask :meth:`run` to return (safe from a signal handler)."""
         self._stop.set()
 
     def status_line(self, t_ns: int) -> str:
-        """Return one line: simulated time, the true pose, thruster messages received."""
+        """Return one line: simulated time, the true pose, thruster messages received.
+
+        Slips of simulated time off the wall clock (a starved process, a clock set) are
+        counted there when there were any.
+        """
         x, y, psi = (float(v) for v in self.world.eta)
+        wall = self._wall
+        slips = ("" if wall is None or wall.slips == 0 else
+                 f", slipped off the wall clock {wall.slips} times "
+                 f"(net {wall.slipped_ns / 1e6:+.0f} ms)")
         return (f"t={t_ns / NS_PER_S:6.1f} s  at ({x:+.2f} m, {y:+.2f} m, "
-                f"{math.degrees(psi):+.0f} deg)  thruster messages {self.commands_received}")
+                f"{math.degrees(psi):+.0f} deg)  thruster messages {self.commands_received}"
+                f"{slips}")
 
     def _on_wrench(self, name: str, msg: Any) -> None:
         with self._lock:
@@ -119,28 +131,34 @@ class SimVesselNode:
                     lambda msg, n=name: self._on_wrench(n, msg), cfg.qos_depth)
             executor = SingleThreadedExecutor(context=context)
             executor.add_node(node)
-            # In wall time, samples carry the node's wall clock, as the real sensors do.
-            offset_ns = 0 if clock_pub is not None else int(node.get_clock().now().nanoseconds)
             clock = (f"/clock at {self.speed:g}x real time" if clock_pub is not None
                      else "wall time")
             progress(f"publishing pose on {cfg.topics.pose} and IMU on {cfg.topics.imu}, "
                      f"thrust from {cfg.topics.tunnel}, {cfg.topics.port}, {cfg.topics.starboard} "
                      f"(ROS domain {domain}, {clock})")
             self._loop(executor, pose_pub, imu_pub, clock_pub, PoseWithCovarianceStamped, Imu,
-                       Clock, duration_s, offset_ns)
+                       Clock, duration_s)
             executor.shutdown()
         finally:
             node.destroy_node()
             context.try_shutdown()
 
     def _loop(self, executor: Any, pose_pub: Any, imu_pub: Any, clock_pub: Any,
-              pose_type: Any, imu_type: Any, clock_type: Any, duration_s: float | None,
-              offset_ns: int) -> None:
+              pose_type: Any, imu_type: Any, clock_type: Any, duration_s: float | None) -> None:
         world = self.world
-        wall_start = time.monotonic()
-        next_status = wall_start + STATUS_PERIOD_S
+        next_status = time.monotonic() + STATUS_PERIOD_S
         cycle_ns = round(_CYCLE_S * NS_PER_S)
         t_ns = world.clock.now_ns()
+        # On /clock, stamps are simulated time and the wall only paces it. In wall time,
+        # samples carry the system clock (the ROS clock) at their capture, as the real
+        # sensors do, however late this process runs or however the clock is set.
+        wall = WallAnchor(time.monotonic_ns if clock_pub is not None else time.time_ns,
+                          t_ns, self.speed, slip_ns=_SLIP_CYCLES * cycle_ns)
+        self._wall = wall
+
+        def stamp(t_capture_ns: int) -> int:
+            return t_capture_ns if clock_pub is not None else wall.wall_of(t_capture_ns)
+
         while not self._stop.is_set():
             if duration_s is not None and t_ns >= duration_s * NS_PER_S:
                 self._progress(f"stopped: {duration_s:g} s simulated (--duration)")
@@ -163,14 +181,13 @@ class SimVesselNode:
                 clock_pub.publish(msg)
             for pose in world.pose.poll():
                 out = pose_type()
-                fill_pose_msg(out, replace(pose, t_ns=pose.t_ns + offset_ns),
+                fill_pose_msg(out, replace(pose, t_ns=stamp(pose.t_ns)),
                               self.config.transform, self.config.pose_frame_id)
                 pose_pub.publish(out)
             for imu in world.imu.poll():
                 out = imu_type()
-                fill_imu_msg(out, replace(imu, t_ns=imu.t_ns + offset_ns))
+                fill_imu_msg(out, replace(imu, t_ns=stamp(imu.t_ns)))
                 imu_pub.publish(out)
-            # Pace simulated time at `speed` x wall time.
-            ahead_s = (t_ns / NS_PER_S) / self.speed - (time.monotonic() - wall_start)
-            if ahead_s > 0:
-                time.sleep(ahead_s)
+            # The step emitted what its sensors captured up to its start: published now, at
+            # most a period early; then wait for the step's end to be due.
+            wall.wait_for(t_ns)
