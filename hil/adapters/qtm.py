@@ -43,6 +43,10 @@ from hil.core.qtm_sample import QtmSample
 from hil.core.records import Event, EventLevel
 from hil.core.samples import Frame, PoseSample
 
+# Steady-clock time (ns) the two reads around an arrival may span and still give the run
+# clock's difference to it: more, and the network thread was held between them.
+_STEADY_READ_NS = 1_000_000
+
 DEFAULT_PORT = 22223
 """QTM's little-endian real-time port."""
 
@@ -146,13 +150,19 @@ class QtmPoseSource:
             :class:`~hil.core.qtm_sample.QtmSample`, lost bodies included) at each
             :meth:`poll`, before the poses, in the polling thread (e.g. the recorder's
             ``record``); None drops them.
+        steady: A steady clock (ns, never set: :func:`time.monotonic_ns`) where `clock` is
+            a system clock that can be set (the ROS clock on wall time): a step of `clock`
+            then moves QTM's offset with it at once; None where `clock` cannot be set or
+            is simulated time.
     """
 
     def __init__(self, config: QtmConfig, clock: Clock,
                  on_event: Callable[[Event], None] | None = None,
-                 on_sample: Callable[[QtmSample], None] | None = None) -> None:
+                 on_sample: Callable[[QtmSample], None] | None = None,
+                 steady: Callable[[], int] | None = None) -> None:
         self.config = config
         self._clock = clock
+        self._steady = steady
         self._on_event = on_event
         self._on_sample = on_sample
         self._feed = QtmFeed(config.body, config.transform, config.clock, config.stall_s)
@@ -394,10 +404,14 @@ class QtmPoseSource:
         return True
 
     def _packet_handler(self, index: int) -> Callable[[Any], None]:
-        feed, clock, lock = self._feed, self._clock, self._lock
+        feed, clock, lock, steady = self._feed, self._clock, self._lock, self._steady
 
         def on_packet(packet: Any) -> None:
+            before = steady() if steady is not None else 0
             arrival_ns = clock.now_ns()
+            steady_ns = steady() if steady is not None else None
+            if steady_ns is not None and steady_ns - before > _STEADY_READ_NS:
+                steady_ns = None  # the thread was held between the reads: no pair to trust
             got = packet.get_6d()
             with lock:
                 if got is None or index >= len(got[1]):
@@ -408,7 +422,7 @@ class QtmPoseSource:
                 position, rotation = bodies[index]
                 pose = feed.frame(arrival_ns, packet.timestamp, packet.framenumber,
                                   (position.x, position.y, position.z), rotation.matrix,
-                                  info.drop_rate, info.out_of_sync_rate, index)
+                                  info.drop_rate, info.out_of_sync_rate, index, steady_ns)
                 if pose is not None:
                     self._poses.append(pose)
             if pose is not None:

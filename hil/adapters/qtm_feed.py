@@ -147,6 +147,13 @@ class ClockMapping:
     tolerance (the fast frames aged out: QTM's clock fell behind, or the path got slower
     for a whole window) is re-estimated as well. :meth:`map` returns what happened.
 
+    The run's own clock can be set too (the vessel computer's system clock, stepped by
+    NTP): every arrival then reads late or early by the step, and the window's minimum
+    would follow only once the old frames aged out, the poses mis-stamped by the step
+    meanwhile. Given a steady clock read beside each arrival, a change of their
+    difference beyond the tolerance is such a step, and the offset and the window move
+    with it at once.
+
     Args:
         settings: Window and tolerance.
     """
@@ -161,6 +168,7 @@ class ClockMapping:
         self._window: deque[tuple[int, int]] = deque()  # (frame count, delta ns), deltas rising
         self._count = 0
         self._last_qtm_ns: int | None = None
+        self._run_minus_steady_ns: int | None = None
         self.offset_ns: int | None = None
         """The offset in force (ns), None before the first frame."""
 
@@ -172,23 +180,41 @@ class ClockMapping:
             self._window.popleft()
         self._count += 1
 
-    def map(self, arrival_ns: int, qtm_ns: int) -> tuple[int, str]:
+    def _run_clock_step(self, arrival_ns: int, steady_ns: int | None) -> int:
+        """Return by how much the run clock was set since the last frame (0: not, or unknown)."""
+        if steady_ns is None:
+            return 0
+        gap = arrival_ns - steady_ns
+        last, self._run_minus_steady_ns = self._run_minus_steady_ns, gap
+        if last is None or abs(gap - last) <= self._tol_ns:
+            return 0
+        return gap - last
+
+    def map(self, arrival_ns: int, qtm_ns: int,
+            steady_ns: int | None = None) -> tuple[int, str]:
         """Return the run-clock stamp of a frame, and "" or why the offset was re-estimated.
 
         Args:
             arrival_ns: When the frame arrived (ns on the run clock).
             qtm_ns: QTM's timestamp of the frame (ns on QTM's clock).
+            steady_ns: A steady clock (never set, e.g. :func:`time.monotonic_ns`) read
+                beside `arrival_ns`, where the run clock can be set; None: not watched.
         """
         delta = arrival_ns - qtm_ns
         why = ""
+        step = self._run_clock_step(arrival_ns, steady_ns)
+        if step and self.offset_ns is not None:
+            self._window = deque((n, d + step) for n, d in self._window)
+            self.offset_ns += step
+            why = f"the run's clock was set by {step / NS_PER_S:+.3f} s (the offset moved with it)"
         previous = self.offset_ns
         settled = self._count >= self.settings.settle
-        if previous is not None and settled and self._last_qtm_ns is not None:
+        if previous is not None and settled and self._last_qtm_ns is not None and not why:
             if qtm_ns <= self._last_qtm_ns:
                 why = f"QTM time ran back by {(self._last_qtm_ns - qtm_ns) / NS_PER_S:.3f} s"
             elif delta < previous - self._tol_ns:
                 why = f"QTM time leapt ahead by {(previous - delta) / NS_PER_S:.3f} s"
-        if why:
+        if why and not step:
             self.reset()
         self._last_qtm_ns = qtm_ns
         self._push(delta)
@@ -274,7 +300,7 @@ class QtmFeed:
     def frame(self, arrival_ns: int, timestamp_us: int, frame_number: int,
               position_mm: Sequence[float], matrix: Sequence[float],
               drop_rate: int = 0, out_of_sync_rate: int = 0,
-              body_index: int = -1) -> PoseSample | None:
+              body_index: int = -1, steady_ns: int | None = None) -> PoseSample | None:
         """Take one received frame of the body; return its arena pose, or None if lost.
 
         Args:
@@ -286,12 +312,14 @@ class QtmFeed:
             drop_rate: The 6D component's drop rate field, kept in the counters.
             out_of_sync_rate: The 6D component's out-of-sync rate field.
             body_index: The body's index among QTM's 6D bodies (-1: not told).
+            steady_ns: A steady clock read beside `arrival_ns` where the run clock can be
+                set (:meth:`ClockMapping.map`); None: not watched.
 
         Every frame is also kept in :attr:`samples` as received.
         """
         self._count(frames=1)
         self._check_sequence(arrival_ns, frame_number)
-        t_ns, why = self.clock.map(arrival_ns, timestamp_us * NS_PER_US)
+        t_ns, why = self.clock.map(arrival_ns, timestamp_us * NS_PER_US, steady_ns)
         if why:
             self.event(arrival_ns, EventLevel.WARN, "qtm_clock_jump",
                        f"clock offset re-estimated at frame {frame_number}: {why}",

@@ -91,64 +91,85 @@ class WallClock:
             self._sleep(remaining_ns * 1e-9)
 
 
-class WallAnchor:
-    """Simulated time held to a wall clock: it sleeps when ahead and slips when far off.
+# Steady-clock time (ns) within which a bracketed read of the system clock is taken as one
+# instant (a thread held between the reads would otherwise shift a stamp by the hold).
+_TIGHT_READ_NS = 100_000
 
-    Simulated time t is due on the wall at ``wall_at_anchor + (t - t_at_anchor) / speed``.
-    When the wall clock is more than `slip_ns` from that (the process was starved, or the
-    system clock was set), the map is anchored anew at the present: the samples' stamps
-    show a gap. Catching up instead would crowd many simulated periods into a burst, and
-    keeping the lag would read as sensor latency to whoever compares stamps with its own
-    clock.
+
+class WallAnchor:
+    """Simulated time held to the wall, and the system clock's reading when each time is due.
+
+    Simulated time t is due at ``steady_at_anchor + (t - t_at_anchor) / speed`` on a steady
+    clock (monotonic: never set). :meth:`wait_for` sleeps when ahead; a little behind (a
+    busy CPU), it returns at once so the next periods catch up; more than `slip_ns` behind
+    (a paused process or machine), it anchors the map anew at the present, a gap in the
+    simulated stream rather than a burst of it.
+
+    :meth:`system_of` is what a sensor stamping at capture would write: the steady due
+    time plus the system clock's present offset from the steady clock. A step of the
+    system clock (NTP setting it, a virtual machine catching up after a pause) thus moves
+    the stamps at once, as it moves the clock of whoever receives them; stamps from the
+    first anchor on would read as that much sensor latency.
 
     Args:
-        wall_ns: The wall clock (ns), e.g. :func:`time.time_ns` (the ROS system clock:
-            stamps a receiver compares with its own) or :func:`time.monotonic_ns`.
-        t_ns: Simulated time at the first anchor (ns), made when the map is first used.
+        t_ns: Simulated time at the first anchor (ns); the map is anchored when first
+            used, so a slow first step (a compilation) is no slip.
         speed: Simulated seconds per wall second, > 0.
-        slip_ns: How far off the wall clock may be before the map is anchored anew (ns).
+        slip_ns: How far behind the wall may be before the map is anchored anew (ns).
+        steady: The steady clock (ns).
+        system: The system clock (ns; the ROS clock on wall time).
         sleep: The sleep function (seconds); injectable for tests.
     """
 
-    def __init__(self, wall_ns: Callable[[], int], t_ns: int, speed: float = 1.0,
-                 slip_ns: int = 20_000_000, sleep: Callable[[float], None] = time.sleep) -> None:
+    def __init__(self, t_ns: int, speed: float = 1.0, slip_ns: int = 500_000_000,
+                 steady: Callable[[], int] = time.monotonic_ns,
+                 system: Callable[[], int] = time.time_ns,
+                 sleep: Callable[[float], None] = time.sleep) -> None:
         if not speed > 0:
             raise ValueError(f"speed must be positive, got {speed!r}")
         if slip_ns <= 0:
             raise ValueError(f"slip_ns must be positive, got {slip_ns!r}")
-        self._wall_ns = wall_ns
+        self._steady = steady
+        self._system = system
         self._speed = float(speed)
         self._slip_ns = int(slip_ns)
         self._sleep = sleep
         self.slips = 0
-        """How many times the map was anchored anew after the first."""
+        """How many times the map was anchored anew, the wall too far ahead."""
         self.slipped_ns = 0
-        """The wall time the slips skipped (ns; a clock set back counts negative)."""
+        """The wall time the slips skipped (ns)."""
         self._t_anchor_ns = int(t_ns)
-        self._wall_anchor_ns: int | None = None
+        self._steady_anchor_ns: int | None = None
 
-    def _anchor(self, t_ns: int) -> None:
-        self._t_anchor_ns = int(t_ns)
-        self._wall_anchor_ns = int(self._wall_ns())
+    def _steady_of(self, t_ns: int) -> int:
+        if self._steady_anchor_ns is None:
+            self._steady_anchor_ns = int(self._steady())
+        return self._steady_anchor_ns + round((t_ns - self._t_anchor_ns) / self._speed)
 
-    def wall_of(self, t_ns: int) -> int:
-        """Return the wall time (ns) at which simulated time `t_ns` is due on the present map.
+    def system_of(self, t_ns: int) -> int:
+        """Return the system clock's reading (ns) when simulated time `t_ns` is due."""
+        return self._steady_of(t_ns) + self._system_minus_steady()
 
-        The first call anchors the map (a slow first step, e.g. a compilation, is no slip).
-        """
-        if self._wall_anchor_ns is None:
-            self._wall_anchor_ns = int(self._wall_ns())
-        return self._wall_anchor_ns + round((t_ns - self._t_anchor_ns) / self._speed)
+    def _system_minus_steady(self) -> int:
+        """Return system - steady, from the tightest of up to three bracketed reads (ns)."""
+        best_span, best = -1, 0
+        for _ in range(3):
+            before = int(self._steady())
+            system = int(self._system())
+            after = int(self._steady())
+            if best_span < 0 or after - before < best_span:
+                best_span, best = after - before, system - (before + after) // 2
+            if best_span <= _TIGHT_READ_NS:
+                break
+        return best
 
     def wait_for(self, t_ns: int) -> None:
-        """Sleep until simulated time `t_ns` is due; anchor anew if the wall is `slip_ns` off.
-
-        Behind by less than `slip_ns`, it returns at once (the next periods catch up).
-        """
-        ahead_ns = self.wall_of(t_ns) - self._wall_ns()
-        if abs(ahead_ns) > self._slip_ns:
+        """Sleep until simulated time `t_ns` is due; anchor anew if `slip_ns` behind."""
+        ahead_ns = self._steady_of(t_ns) - int(self._steady())
+        if ahead_ns > 0:
+            self._sleep(ahead_ns / NS_PER_S)
+        elif -ahead_ns > self._slip_ns:
             self.slips += 1
             self.slipped_ns -= ahead_ns
-            self._anchor(t_ns)
-        elif ahead_ns > 0:
-            self._sleep(ahead_ns / NS_PER_S)
+            self._t_anchor_ns = int(t_ns)
+            self._steady_anchor_ns = int(self._steady())

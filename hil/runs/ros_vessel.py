@@ -30,8 +30,6 @@ from hil.core.samples import ThrusterCommand
 
 # Simulated time advanced per publication cycle (s).
 _CYCLE_S = 0.01
-# Cycles the wall clock may be off before simulated time is anchored anew (a slip).
-_SLIP_CYCLES = 2
 # Wall seconds between status lines.
 STATUS_PERIOD_S = 5.0
 
@@ -76,14 +74,14 @@ class SimVesselNode:
     def status_line(self, t_ns: int) -> str:
         """Return one line: simulated time, the true pose, thruster messages received.
 
-        Slips of simulated time off the wall clock (a starved process, a clock set) are
-        counted there when there were any.
+        Where simulated time fell too far behind the wall to catch up (a paused process),
+        the line says how often.
         """
         x, y, psi = (float(v) for v in self.world.eta)
         wall = self._wall
         slips = ("" if wall is None or wall.slips == 0 else
-                 f", slipped off the wall clock {wall.slips} times "
-                 f"(net {wall.slipped_ns / 1e6:+.0f} ms)")
+                 f", fell behind the wall clock {wall.slips} times "
+                 f"({wall.slipped_ns / 1e6:.0f} ms skipped)")
         return (f"t={t_ns / NS_PER_S:6.1f} s  at ({x:+.2f} m, {y:+.2f} m, "
                 f"{math.degrees(psi):+.0f} deg)  thruster messages {self.commands_received}"
                 f"{slips}")
@@ -151,13 +149,12 @@ class SimVesselNode:
         t_ns = world.clock.now_ns()
         # On /clock, stamps are simulated time and the wall only paces it. In wall time,
         # samples carry the system clock (the ROS clock) at their capture, as the real
-        # sensors do, however late this process runs or however the clock is set.
-        wall = WallAnchor(time.monotonic_ns if clock_pub is not None else time.time_ns,
-                          t_ns, self.speed, slip_ns=_SLIP_CYCLES * cycle_ns)
+        # sensors do, however the clock is set meanwhile.
+        wall = WallAnchor(t_ns, self.speed)
         self._wall = wall
 
         def stamp(t_capture_ns: int) -> int:
-            return t_capture_ns if clock_pub is not None else wall.wall_of(t_capture_ns)
+            return t_capture_ns if clock_pub is not None else wall.system_of(t_capture_ns)
 
         while not self._stop.is_set():
             if duration_s is not None and t_ns >= duration_s * NS_PER_S:

@@ -202,9 +202,12 @@ def _pose_feed(closing: ExitStack, config: VesselConfig, ros: RosWorld, log: Run
     pose = _ros_pose(ros, config.ros.topics.pose, feeds)
     if config.qtm is not None:
         assert ros.clock is not None
+        # On wall time the run clock is the system clock, which NTP may step: QTM's offset
+        # follows a step at once (watched against the monotonic clock).
         qtm = closing.enter_context(QtmPoseSource(
             config.qtm, ros.clock, on_event=lambda e: log.event(e.t_ns, e.level, e.code, e.text),
             on_sample=recorder.record,
+            steady=None if config.ros.use_sim_time else time.monotonic_ns,
         ))  # fmt: skip
         source, pose, heard = qtm, _qtm_pose(qtm), None
         pose_health = functools.partial(_qtm_health, qtm)

@@ -141,6 +141,45 @@ def test_window_ageing_out_a_faster_path_re_estimates() -> None:
     assert whys[4] == "the offset rose by 0.049 s over 5 frames"
 
 
+@pytest.mark.parametrize("step_ms", [100, -250])
+def test_a_step_of_the_run_clock_moves_the_offset_at_once(step_ms: int) -> None:
+    """NTP sets the vessel computer's clock: the stamps stay true to the arrivals' clock."""
+    clock = ClockMapping(ClockSettings(window=200, jump_tolerance_s=0.02, settle=5))
+    latency = 3 * MS
+    set_by = 0
+    for k in range(60):
+        if k == 30:
+            set_by = step_ms * MS
+        steady = 5_000 * MS + k * 10 * MS + latency
+        t, why = clock.map(steady + set_by, k * 10 * MS, steady_ns=steady)
+        # Every frame as fast as the fastest: stamped at its arrival, on the run clock as it
+        # reads now (not the step behind or ahead).
+        assert t == steady + set_by
+        expected = (f"the run's clock was set by {step_ms / 1000:+.3f} s (the offset moved "
+                    "with it)") if k == 30 else ""
+        assert why == expected
+
+
+def test_without_a_steady_clock_a_run_clock_step_ages_out_of_the_window() -> None:
+    """What the steady clock saves: the offset keeps the old minimum for a whole window."""
+    clock = ClockMapping(ClockSettings(window=20, jump_tolerance_s=0.02, settle=5))
+    stamps = [clock.map(k * 10 * MS + 3 * MS + (100 * MS if k >= 30 else 0), k * 10 * MS)[0]
+              for k in range(60)]
+    assert stamps[30] == 30 * 10 * MS + 3 * MS  # 100 ms before the frame's arrival
+    assert stamps[48] == 48 * 10 * MS + 3 * MS  # and so until the window aged out
+    assert stamps[59] == 59 * 10 * MS + 103 * MS
+
+
+def test_a_late_arrival_read_is_no_clock_step() -> None:
+    """A held thread delays both reads alike: only the pair's difference counts."""
+    clock = ClockMapping(ClockSettings(settle=2))
+    for k in range(10):
+        late = 40 * MS if k == 5 else 0
+        steady = k * 10 * MS + MS + late
+        _, why = clock.map(steady + 7 * MS, k * 10 * MS, steady_ns=steady)
+        assert why == ""
+
+
 def test_frame_number_gaps_are_drops() -> None:
     feed = QtmFeed("2", ArenaTransform())
     for n in (1, 2, 3, 6, 7, 9):
