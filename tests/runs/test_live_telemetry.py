@@ -110,9 +110,14 @@ SILENT = "/voyager/measurement/pose messages"  # the premise line of a period wi
 
 def _pose_level(level: DiagnosticLevel, after: int = 0,
                 silent: bool = False) -> Callable[[Heard], bool]:
-    """Whether an array from the `after`-th on had the pose feed at `level` (and no pose)."""
+    """Whether an array from the `after`-th on had the pose feed at `level` (and no pose).
+
+    `silent`: its premises judged a whole period without a pose ("0 received"; the period in
+    which the feed was cut may have heard one, and the stack may be stopped before the next).
+    """
     return lambda h: any(a["hil_stack: pose feed"][0] is level
-                         and (not silent or SILENT in a["hil_stack: premises"][3])
+                         and (not silent or a["hil_stack: premises"][3].get(SILENT, "")
+                              .startswith("FAILED: 0 received"))
                          for a in h.arrays[after:])
 
 
