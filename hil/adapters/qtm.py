@@ -38,12 +38,13 @@ from hil.adapters.qtm_feed import (
     body_index,
     yaw_from_rotation_matrix,
 )
+from hil.core.clock import read_beside
 from hil.core.config import check_keys, from_table
 from hil.core.qtm_sample import QtmSample
 from hil.core.records import Event, EventLevel
 from hil.core.samples import Frame, PoseSample
 
-# Steady-clock time (ns) the two reads around an arrival may span and still give the run
+# Steady-clock time (ns) the reads around an arrival may span and still give the run
 # clock's difference to it: more, and the network thread was held between them.
 _STEADY_READ_NS = 1_000_000
 
@@ -407,11 +408,13 @@ class QtmPoseSource:
         feed, clock, lock, steady = self._feed, self._clock, self._lock, self._steady
 
         def on_packet(packet: Any) -> None:
-            before = steady() if steady is not None else 0
-            arrival_ns = clock.now_ns()
-            steady_ns = steady() if steady is not None else None
-            if steady_ns is not None and steady_ns - before > _STEADY_READ_NS:
-                steady_ns = None  # the thread was held between the reads: no pair to trust
+            steady_ns: int | None = None
+            if steady is None:
+                arrival_ns = clock.now_ns()
+            else:
+                arrival_ns, steady_ns, span_ns = read_beside(clock.now_ns, steady)
+                if span_ns > _STEADY_READ_NS:
+                    steady_ns = None  # held between every pair of reads: none to trust
             got = packet.get_6d()
             with lock:
                 if got is None or index >= len(got[1]):

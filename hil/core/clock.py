@@ -91,9 +91,30 @@ class WallClock:
             self._sleep(remaining_ns * 1e-9)
 
 
-# Steady-clock time (ns) within which a bracketed read of the system clock is taken as one
-# instant (a thread held between the reads would otherwise shift a stamp by the hold).
+# Steady-clock time (ns) within which a bracketed read is taken as one instant, so that
+# :func:`read_beside` tries no more.
 _TIGHT_READ_NS = 100_000
+
+
+def read_beside(clock: Callable[[], int], steady: Callable[[], int],
+                tries: int = 3) -> tuple[int, int, int]:
+    """Read `clock` between two reads of `steady`; return (clock, steady's midpoint, span) (ns).
+
+    A thread held between the reads would pair the two clocks wrongly by the hold: the
+    tightest of up to `tries` bracketed reads is kept (the first within 0.1 ms ends it), and
+    its span (the steady time between its two reads) bounds the pairing's error.
+    """
+    best: tuple[int, int, int] | None = None
+    for _ in range(max(1, tries)):
+        before = int(steady())
+        reading = int(clock())
+        after = int(steady())
+        if best is None or after - before < best[2]:
+            best = (reading, (before + after) // 2, after - before)
+        if best[2] <= _TIGHT_READ_NS:
+            break
+    assert best is not None
+    return best
 
 
 class WallAnchor:
@@ -148,20 +169,8 @@ class WallAnchor:
 
     def system_of(self, t_ns: int) -> int:
         """Return the system clock's reading (ns) when simulated time `t_ns` is due."""
-        return self._steady_of(t_ns) + self._system_minus_steady()
-
-    def _system_minus_steady(self) -> int:
-        """Return system - steady, from the tightest of up to three bracketed reads (ns)."""
-        best_span, best = -1, 0
-        for _ in range(3):
-            before = int(self._steady())
-            system = int(self._system())
-            after = int(self._steady())
-            if best_span < 0 or after - before < best_span:
-                best_span, best = after - before, system - (before + after) // 2
-            if best_span <= _TIGHT_READ_NS:
-                break
-        return best
+        system, steady, _ = read_beside(self._system, self._steady)
+        return self._steady_of(t_ns) + system - steady
 
     def wait_for(self, t_ns: int) -> None:
         """Sleep until simulated time `t_ns` is due; anchor anew if `slip_ns` behind."""

@@ -1,6 +1,6 @@
 import pytest
 
-from hil.core.clock import SimClock, WallAnchor, WallClock
+from hil.core.clock import SimClock, WallAnchor, WallClock, read_beside
 
 
 def test_sim_clock_advances_world_in_order_and_never_backwards() -> None:
@@ -114,3 +114,11 @@ def test_wall_anchor_refuses_a_speed_or_tolerance_that_is_not_positive() -> None
         WallAnchor(0, speed=0.0)
     with pytest.raises(ValueError, match="slip_ns"):
         WallAnchor(0, slip_ns=0)
+
+
+def test_read_beside_keeps_the_tightest_pair() -> None:
+    """A read held between its steady reads is retried; the tightest pair is kept."""
+    steady_reads = iter([0, 5_000_000, 5_000_010, 5_000_020])  # first pair held 5 ms
+    clock_reads = iter([900, 5_000_915])
+    reading, midpoint, span = read_beside(lambda: next(clock_reads), lambda: next(steady_reads))
+    assert (reading, midpoint, span) == (5_000_915, 5_000_015, 10)
