@@ -31,7 +31,7 @@ def box_scratch(nw: int, xp: int) -> tuple[U64Array, U64Array, U64Array]:
     return H, L, R
 
 
-@njit
+@njit_inline
 def box_test(
     Wt: U64Array, u: int, k0: int, h0: int, h1: int, box: I32Array, lo: int, hi: int,
     px: int, pw: int, H: U64Array, L: U64Array, R: U64Array, out: U64Array,
@@ -74,30 +74,42 @@ def _heading_and(
     """Fill H[q nxh + x], q < nw + 2: the AND over headings k0 + h0 .. k0 + h1 of Wt[u, k].
 
     Row q of H is word a + q over x rows xa .. xb - 1, zero where a + q is a padding
-    word (outside the grid). Two headings per pass: the first with the last, then pairs
-    (an odd one paired with itself).
+    word (outside the grid). Up to 5 headings (the paper grid's classes have 3 and 5) in
+    one pass of 3 or 5 rows, a heading repeated where there are fewer (a second pass
+    over a short band cost more than the loads); more: two headings per pass.
     """
     npsi = Wt.shape[1]
     nxh = xb - xa
     nh = h1 - h0 + 1
-    ka = (k0 + h0) % npsi
-    kz = (k0 + h1) % npsi
+    last = nh - 1
+    k_0 = (k0 + h0) % npsi
+    k_1 = (k0 + h0 + min(1, last)) % npsi
+    k_2 = (k0 + h0 + min(2, last)) % npsi
+    k_3 = (k0 + h0 + min(3, last)) % npsi
+    k_4 = (k0 + h0 + min(4, last)) % npsi
     for q in range(nw + 2):
         dst = H[q * nxh : (q + 1) * nxh]
         if a + q < pw or a + q >= pw + nw:
             for x in range(nxh):
                 dst[x] = _ZERO
             continue
-        s0 = Wt[u, ka, a + q, xa:xb]
-        s1 = Wt[u, kz, a + q, xa:xb]
-        for x in range(nxh):
-            dst[x] = s0[x] & s1[x]
-        ok = 1
-        while ok < nh - 1:
-            s1 = Wt[u, (k0 + h0 + ok) % npsi, a + q, xa:xb]
-            s2 = Wt[u, (k0 + h0 + min(ok + 1, nh - 2)) % npsi, a + q, xa:xb]
+        s0 = Wt[u, k_0, a + q, xa:xb]
+        s1 = Wt[u, k_1, a + q, xa:xb]
+        s2 = Wt[u, k_2, a + q, xa:xb]
+        if nh <= 3:
             for x in range(nxh):
-                dst[x] &= s1[x] & s2[x]
+                dst[x] = s0[x] & s1[x] & s2[x]
+            continue
+        s3 = Wt[u, k_3, a + q, xa:xb]
+        s4 = Wt[u, k_4, a + q, xa:xb]
+        for x in range(nxh):
+            dst[x] = s0[x] & s1[x] & s2[x] & s3[x] & s4[x]
+        ok = 5
+        while ok < nh:
+            s0 = Wt[u, (k0 + h0 + ok) % npsi, a + q, xa:xb]
+            s1 = Wt[u, (k0 + h0 + min(ok + 1, last)) % npsi, a + q, xa:xb]
+            for x in range(nxh):
+                dst[x] &= s0[x] & s1[x]
             ok += 2
 
 
@@ -157,7 +169,7 @@ def _window_x(L: U64Array, R: U64Array, n2: int, nbx: int) -> tuple[U64Array, in
     return src, span
 
 
-@njit
+@njit_inline
 def changed_band(
     ch: I32Array, u: int, k0: int, h0: int, h1: int, box: I32Array, nx: int
 ) -> tuple[int, int]:
@@ -179,7 +191,7 @@ def changed_band(
     return max(cl - box[1], 0), min(chh - box[0], nx - 1)
 
 
-@njit
+@njit_inline
 def row_ends(rows: U64Array, lo: int, n: int, nx: int) -> tuple[int, int]:
     """Return lo + the first and last index of a nonzero entry of rows[:n]; (nx, -1): none."""
     first = -1
