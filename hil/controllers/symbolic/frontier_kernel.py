@@ -55,7 +55,6 @@ __all__ = [
     "shifted",
     "start_levels",
     "successor_run",
-    "viable_words",
 ]
 
 _ZERO = np.uint64(0)
@@ -93,49 +92,6 @@ def erode_free(F0: U64Array, out: U64Array, r0: int = 0, r1: int = -1) -> None:
                     out[h, r, w] = out[h - 1, r, w] & (F0[r, w + q] >> s)
                 else:
                     out[h, r, w] = _ZERO
-
-
-@njit
-def viable_words(
-    Fe: U64Array,
-    cls: int,
-    k: int,
-    u: int,
-    tube_x0: I32Array,
-    tube_n: I32Array,
-    tube_y: I32Array,
-    px: int,
-    pw: int,
-    out: U64Array,
-    i_lo: int = 0,
-    i_hi: int = -1,
-) -> None:
-    """Fill out[cls, u, i, k, :] for i in [i_lo, i_hi] (all rows if i_hi < 0): free tubes.
-
-    Bit b of word w: the tube (class cls, input u, heading k) from cell (i, 64 w + b) is
-    free. Fe holds the free cells eroded along y, shape (layers, nx + 2 px, nw + 2 pw); out
-    has shape (3, m, nx, npsi, nw).
-    """
-    nx = out.shape[2]
-    nw = out.shape[4]
-    x0 = tube_x0[cls, k, u]
-    if i_hi < 0:
-        i_hi = nx - 1
-    for i in range(max(i_lo, 0), min(i_hi, nx - 1) + 1):
-        ip = px + i
-        for w in range(nw):
-            wp = pw + w
-            acc = ~_ZERO
-            for c in range(tube_n[cls, k, u]):
-                y0 = tube_y[cls, k, u, c, 0]
-                h = tube_y[cls, k, u, c, 1] - y0
-                a = wp + (y0 >> 6)
-                s = np.uint64(y0 & 63)
-                x = ip + x0 + c
-                acc &= shifted(Fe[h, x, a], Fe[h, x, a + 1], s)
-                if acc == _ZERO:
-                    break
-            out[cls, u, i, k, w] = acc
 
 
 @njit

@@ -306,13 +306,15 @@ class Synthesizer:
         controller.stats = replace(controller.stats, peak_bytes=peak)
         return controller
 
-    def _words(self, free: BoolArray, target: BoolArray) -> tuple[U64Array, U64Array]:
+    def _words(
+        self, free: BoolArray, target: BoolArray, threads: int = 1
+    ) -> tuple[U64Array, U64Array]:
         """Return the viable words (3, m, nx, npsi, nw) and goal words (nx, npsi, nw)."""
         nx, ny, npsi = self._tables.grid.shape
         nw = (ny + 63) // 64
         goal_cells = np.ascontiguousarray(np.transpose(target, (0, 2, 1)).reshape(-1, ny))
         goal = pack_rows(goal_cells).reshape(nx, npsi, nw)
-        return self._viable.words(free), goal
+        return self._viable.words(free, threads), goal
 
     def _level_solver(self, viable: U64Array, goal: U64Array, threads: int) -> LevelSolver:
         t = self._tables
@@ -470,8 +472,8 @@ class Synthesizer:
             )
         require_bytes(self.solve_bytes, f"a solve on the {nx} x {ny} x {npsi} grid, {m} inputs")
         t0 = time.perf_counter() if start is None else start
-        viable, goal = self._words(free, target)
         threads = 1 if self._threads == 1 else (self._threads or _max_threads())
+        viable, goal = self._words(free, target, threads)
         stages: Iterator[tuple[U64Array, U64Array, int, bool]]
         if self._kernel == "planes" and nested_classes(t.succ, t.heading, viable):
             stages = self._planes_stages(self._level_solver(viable, goal, threads), watch)
@@ -505,10 +507,10 @@ class Synthesizer:
         nx, ny, npsi = t.grid.shape
         if free.shape != (self._psi_lo.shape[0], nx, ny) or target.shape != (nx, ny, npsi):
             raise GridError(f"masks of shapes {free.shape!r}, {target.shape!r} do not fit the grid")
-        viable, goal = self._words(free, target)
+        threads = 1 if self._threads == 1 else (self._threads or _max_threads())
+        viable, goal = self._words(free, target, threads)
         if not nested_classes(t.succ, t.heading, viable):
             raise GridError("class-1 boxes do not contain class 0's: use the frontier kernel")
-        threads = 1 if self._threads == 1 else (self._threads or _max_threads())
         return self._level_solver(viable, goal, threads)
 
     def controller_of(
