@@ -166,6 +166,8 @@ def _update_heading(
     m = St.shape[0]
     nw = At.shape[2]
     nx = At.shape[3]
+    keep = np.empty(nx, dtype=np.uint64)
+    rows = np.empty(nx, dtype=np.uint64)
     n_changed = 0
     for p in range(m):
         lo = band_a[p, k, 0]
@@ -179,21 +181,31 @@ def _update_heading(
         ch[p, k, 1] = -1
         if lo > hi:
             continue
+        nb = hi + 1 - lo
+        r = rows[:nb]
+        for w in range(nw):
+            # Each option's row at a time, contiguous over x (an element at a time, the
+            # 27 options' words of one x row lie in 27 cache lines: 2.5x slower).
+            kw = keep[:nb]
+            a = At[p, k, w, lo : hi + 1]
+            for t in range(nb):
+                kw[t] = a[t]
+            for c in range(n_neighbours[p]):
+                b = Bt[neighbours[p, c], k, w, lo : hi + 1]
+                for t in range(nb):
+                    kw[t] |= b[t]
+            sw = St[p, k, pw + w, px + lo : px + hi + 1]
+            for t in range(nb):
+                lost = sw[t] & ~kw[t]
+                r[t] = lost if w == 0 else r[t] | lost
+                sw[t] &= kw[t]
         first = nx
         last = -1
-        for i in range(lo, hi + 1):
-            lost = _ZERO
-            for w in range(nw):
-                keep = At[p, k, w, i]
-                for c in range(n_neighbours[p]):
-                    keep |= Bt[neighbours[p, c], k, w, i]
-                s = St[p, k, pw + w, px + i]
-                lost |= s & ~keep
-                St[p, k, pw + w, px + i] = s & keep
-            if lost != _ZERO:
+        for t in range(nb):
+            if r[t] != _ZERO:
                 n_changed += 1
-                first = min(first, i)
-                last = i
+                first = min(first, lo + t)
+                last = lo + t
         ch[p, k, 0] = first
         ch[p, k, 1] = last
     return n_changed

@@ -46,9 +46,8 @@ I32Array = NDArray[np.int32]
 __all__ = ["KERNELS", "N_PLANES", "Synthesizer", "Watch", "synthesize"]
 
 KERNELS = ("planes", "frontier")
-"""The fixed-point kernels: :mod:`planes_kernel` (the default; the Synthesizer falls
-back to the frontier kernel for tables whose class-1 boxes do not contain class 0's) and
-:mod:`sweep`'s frontier kernel (the reference)."""
+"""The fixed-point kernels: :mod:`planes_kernel` (the default; the frontier kernel serves
+tables whose class-1 boxes do not contain class 0's) and the frontier kernel (the reference)."""
 
 N_PLANES = 8
 """Bit planes of the values: at most 255 levels."""
@@ -306,9 +305,7 @@ class Synthesizer:
         controller.stats = replace(controller.stats, peak_bytes=peak)
         return controller
 
-    def _words(
-        self, free: BoolArray, target: BoolArray, threads: int = 1
-    ) -> tuple[U64Array, U64Array]:
+    def _words(self, free: BoolArray, target: BoolArray, threads: int) -> tuple[U64Array, U64Array]:
         """Return the viable words (3, m, nx, npsi, nw) and goal words (nx, npsi, nw)."""
         nx, ny, npsi = self._tables.grid.shape
         nw = (ny + 63) // 64
@@ -317,8 +314,7 @@ class Synthesizer:
         return self._viable.words(free, threads), goal
 
     def _level_solver(self, viable: U64Array, goal: U64Array, threads: int) -> LevelSolver:
-        t = self._tables
-        axes = self._lattice.axes
+        t, axes = self._tables, self._lattice.axes
         with self._reuse_lock:
             scratch, self._spare = self._spare, None
             outputs, self._ready = self._ready, None
@@ -474,19 +470,21 @@ class Synthesizer:
         t0 = time.perf_counter() if start is None else start
         threads = 1 if self._threads == 1 else (self._threads or _max_threads())
         viable, goal = self._words(free, target, threads)
-        stages: Iterator[tuple[U64Array, U64Array, int, bool]]
-        if self._kernel == "planes" and nested_classes(t.succ, t.heading, viable):
-            stages = self._planes_stages(self._level_solver(viable, goal, threads), watch)
-        else:
-            stages = self._frontier_stages(viable, goal, threads, watch)
+        use_planes = self._kernel == "planes" and nested_classes(t.succ, t.heading, viable)
+        solver = self._level_solver(viable, goal, threads) if use_planes else None
+        stages = (self._planes_stages(solver, watch) if solver is not None
+                  else self._frontier_stages(viable, goal, threads, watch))
         for W, planes, levels, complete in stages:
             safe = None
             if complete:
                 lat = self._lattice
-                safe = solve_safe_set(
-                    viable, self._pads, t.succ, t.heading, lat.neighbours, lat.n_neighbours,
-                    threads,
-                ).bits  # fmt: skip
+                with self._reuse_lock:  # this solve's arrays, held back from the next solve
+                    mine = solver is not None and solver.scratch is self._spare
+                    spare, self._spare = (self._spare, None) if mine else (None, self._spare)
+                safe = solve_safe_set(viable, self._pads, t.succ, t.heading, lat.neighbours,
+                                      lat.n_neighbours, threads, spare).bits
+                with self._reuse_lock:
+                    self._spare = spare if spare is not None else self._spare
             yield self._controller(
                 W, planes, viable, levels, target, obstacles, free_cells, t0, threads, complete,
                 safe,

@@ -129,7 +129,7 @@ def test_a_fixed_point_longer_than_the_planes_stops_at_their_last_level(
     flat = tables.hull_psi.reshape(-1, 2)
     free = problem.free_masks(flat[:, 0], flat[:, 1])
     target = problem.target_cells(problem.heading_free())
-    viable, goal = synthesizer._words(free, target)
+    viable, goal = synthesizer._words(free, target, 1)
     axes = synthesizer.lattice.axes
     solver = LevelSolver(goal, viable, synthesizer._pads, tables.succ, tables.heading,
                          (len(axes[0]), len(axes[1]), len(axes[2])), n_planes=2)  # fmt: skip

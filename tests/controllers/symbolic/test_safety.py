@@ -112,6 +112,25 @@ def test_threads_give_the_same_set() -> None:
     np.testing.assert_array_equal(two.bits, one.safe_words)
 
 
+def test_a_synthesizer_reusing_its_working_arrays_gives_fresh_solves_sets() -> None:
+    # The safety solve runs on the reach solve's working arrays, which the next solve of
+    # the same synthesizer reuses: each layout's set must be the one a fresh solve finds.
+    first = tiny.problem(tiny.zero_budget())
+    second = tiny.problem(
+        tiny.zero_budget(), obstacles=(Rect(-0.4, -0.2, -0.5, 0.3), tiny.OBSTACLE)
+    )
+    tables, _ = first.tables(use_cache=False)
+    synthesizer = Synthesizer(tables, memo=False, use_cache=False)
+    for problem in (first, second, first):
+        c = synthesizer.solve_problem(problem)
+        lat = c.lattice
+        fresh = solve_safe_set(c.viable_words, c.pads, tables.succ, tables.heading,
+                               lat.neighbours, lat.n_neighbours)  # fmt: skip
+        assert c.safe_words is not None
+        np.testing.assert_array_equal(c.safe_words, fresh.bits)
+        np.testing.assert_array_equal(_kernel_safe(c), _dense_safe(c))
+
+
 def test_staying_inputs_lead_into_the_set_and_exist_exactly_there() -> None:
     c = _solve(tiny.problem(tiny.zero_budget()))
     safe = _dense_safe(c)
