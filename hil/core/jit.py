@@ -83,6 +83,29 @@ def njit_parallel(fn: F) -> F:
     return cast(F, numba.njit(cache=True, nogil=True, parallel=True)(fn))
 
 
+def thread_limit(threads: int) -> int:
+    """Return how many of numba's threads a kernel asked to run on `threads` may use.
+
+    Between 1 and NUMBA_NUM_THREADS (the pool's size, fixed at start-up).
+    """
+    return max(1, min(int(threads), int(numba.config.NUMBA_NUM_THREADS)))  # type: ignore[attr-defined]
+
+
+@contextlib.contextmanager
+def numba_threads(threads: int) -> Iterator[int]:
+    """Run numba's parallel kernels on :func:`thread_limit` (threads) threads in the block.
+
+    Yields that count; the pool's previous setting is restored on leaving, whatever happens.
+    """
+    count = thread_limit(threads)
+    previous = numba.get_num_threads()
+    numba.set_num_threads(count)
+    try:
+        yield count
+    finally:
+        numba.set_num_threads(previous)
+
+
 @contextlib.contextmanager
 def cache_lock() -> Iterator[None]:
     """Hold this source tree's cache folder exclusively (blocks until free).

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -25,7 +24,7 @@ from hil.controllers.symbolic.planes_kernel import (
     transpose_viable,
 )
 from hil.core.arrays import U64Array
-from hil.core.jit import njit
+from hil.core.jit import njit, numba_threads, thread_limit
 
 I32Array = NDArray[np.int32]
 
@@ -240,8 +239,7 @@ class LevelSolver:
     def _threaded(self) -> tuple[bool, int]:
         if self.threads == 1:
             return True, 0
-        limit = int(numba.config.NUMBA_NUM_THREADS)  # type: ignore[attr-defined]
-        return False, min(self.threads, limit)
+        return False, thread_limit(self.threads)
 
     def advance(self) -> int:
         """Join the states of value level + 1; return how many (x, heading) rows changed.
@@ -255,12 +253,8 @@ class LevelSolver:
         if serial:
             n = int(advance_serial(self.level, *self._args()))
         else:
-            previous = numba.get_num_threads()
-            numba.set_num_threads(threads)
-            try:
+            with numba_threads(threads):
                 n = int(advance_parallel(self.level, *self._args()))
-            finally:
-                numba.set_num_threads(previous)
         if n == 0:
             self.done = True
         elif n > 0:

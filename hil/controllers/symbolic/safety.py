@@ -13,7 +13,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -26,6 +25,7 @@ from hil.controllers.symbolic.safety_kernel import (
     safety_iterate_serial,
 )
 from hil.core.arrays import U64Array
+from hil.core.jit import numba_threads
 
 I32Array = NDArray[np.int32]
 
@@ -109,13 +109,8 @@ def solve_safe_set(
     if threads <= 1:
         iterations = int(safety_iterate_serial(*args))
     else:
-        previous = numba.get_num_threads()
-        limit = int(numba.config.NUMBA_NUM_THREADS)  # type: ignore[attr-defined]
-        numba.set_num_threads(min(threads, limit))
-        try:
+        with numba_threads(threads):
             iterations = int(safety_iterate_parallel(*args))
-        finally:
-            numba.set_num_threads(previous)
     if iterations < 0:
         raise GridError(
             f"the safety fixed point did not converge in {MAX_SAFETY_ITERATIONS} iterations"
