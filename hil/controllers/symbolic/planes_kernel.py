@@ -48,6 +48,7 @@ from numba import prange
 from numpy.typing import NDArray
 
 from hil.controllers.symbolic.box_test import box_scratch, box_test, changed_band, row_ends
+from hil.controllers.symbolic.planes_join import apply_heading
 from hil.core.arrays import U64Array
 from hil.core.jit import njit, njit_inline, njit_parallel
 from hil.core.prefetch import prefetch_rows
@@ -65,7 +66,6 @@ __all__ = [
 ]
 
 _ZERO = np.uint64(0)
-_ONE = np.uint64(1)
 
 
 def nested_classes(succ: I32Array, heading: I32Array, viable: U64Array) -> bool:
@@ -130,14 +130,14 @@ def init_planes_state(goal: U64Array, Wt: U64Array, ch: I32Array, px: int, pw: i
 
 @njit_inline
 def _prefetch_slab(
-    u: int, k0: int, Wt: U64Array, Bt: U64Array, Vt: U64Array, nA: U64Array, nB: U64Array,
-    bands: I32Array, succ: I32Array, heading: I32Array, px: int, pw: int,
+    u: int, k0: int, Wt: U64Array, Bt: U64Array, Vt: U64Array, bands: I32Array,
+    succ: I32Array, heading: I32Array, px: int, pw: int,
 ) -> None:  # fmt: skip
     """Prefetch the rows slab (u, k0)'s sweep reads.
 
-    For each class with a band: its viable, new-state and (class 1) B rows, (class 0)
-    the winning rows it masks with, and the winning rows of the heading its box reaches
-    last (the slab before read the others).
+    For each class with a band: its viable and (class 1) B rows, (class 0) the winning
+    rows it masks with, and the winning rows of the heading its box reaches last (the
+    slab before read the others). Not the new-state rows: :func:`_store_new` writes few.
     """
     npsi = Wt.shape[1]
     nw = Bt.shape[2]
@@ -145,10 +145,8 @@ def _prefetch_slab(
         lo, hi = bands[k0, c, 0], bands[k0, c, 1]
         if lo > hi:
             continue
-        dst = nA if c == 0 else nB
         for w in range(nw):
             prefetch_rows(Vt[c, u, k0, w], lo, hi)
-            prefetch_rows(dst[k0, u, w], lo, hi)
             if c == 0:
                 prefetch_rows(Wt[u, k0, pw + w], px + lo, px + hi)
             else:
@@ -202,7 +200,7 @@ def _sweep_input(
             bands[k0, c, 1] = hi
     for k0 in range(npsi):
         if k0 + 1 < npsi:
-            _prefetch_slab(u, k0 + 1, Wt, Bt, Vt, nA, nB, bands, succ, heading, px, pw)
+            _prefetch_slab(u, k0 + 1, Wt, Bt, Vt, bands, succ, heading, px, pw)
         for c in range(2):
             band = band_a if c == 0 else band_b
             band[u, k0, 0] = nx
@@ -215,242 +213,44 @@ def _sweep_input(
             box = succ[c, k0, u]
             nb = hi + 1 - lo
             box_test(Wt, u, k0, h0, h1, box, lo, hi, px, pw, H, L, R, out)
-            dst = nA if c == 0 else nB
             r = rows[:nb]
             for i in range(nb):
                 r[i] = _ZERO
             for w in range(nw):
                 vw = Vt[c, u, k0, w, lo : hi + 1]
                 ow = out[w, lo : hi + 1]
-                dw = dst[k0, u, w, lo : hi + 1]
-                if c == 0:
-                    cur = Wt[u, k0, pw + w, px + lo : px + hi + 1]
-                    for i in range(nb):
-                        g = vw[i] & ~cur[i] & ow[i]
-                        dw[i] = g
-                        r[i] |= g
-                else:
-                    bw = Bt[u, k0, w, lo : hi + 1]
-                    for i in range(nb):
-                        g = vw[i] & ~bw[i] & ow[i]
-                        dw[i] = g
-                        bw[i] |= g
-                        r[i] |= g
-            band[u, k0, 0], band[u, k0, 1] = row_ends(rows, lo, nb, nx)
-
-
-@njit
-def _or_into(acc: U64Array, src: U64Array, lo: int, a0: int, a1: int) -> None:
-    """acc[i - lo] |= src[i] for i in [a0, a1] (1-D rows)."""
-    n = a1 + 1 - a0
-    if n <= 0:
-        return
-    dst = acc[a0 - lo : a1 + 1 - lo]
-    s = src[a0 : a1 + 1]
-    for i in range(n):
-        dst[i] |= s[i]
-
-
-@njit
-def _dilate(
-    src: U64Array,
-    sband: I32Array,
-    dst: U64Array,
-    dband: I32Array,
-    stride: int,
-    size: int,
-) -> None:
-    """dst[u] = OR of src[v] over v = u and its neighbours u -+ stride on one lattice axis.
-
-    The axis has `size` points, u's coordinate on it is (u // stride) % size. Arrays
-    (m, nw, nx) of one heading, only each row's band [lo, hi] (bands (m, 2)) is read / set.
-    The source the next layer adds (u + 1 + stride) is prefetched: the first pass reads
-    the sweep's nB, long out of cache (0.7x the dilations' time at the paper grid).
-    """
-    m = src.shape[0]
-    nw = src.shape[1]
-    nx = src.shape[2]
-    for u in range(m):
-        ahead = u + 1 + stride
-        if ahead < m:
-            for w in range(nw):
-                prefetch_rows(src[ahead, w], sband[ahead, 0], sband[ahead, 1])
-        coord = (u // stride) % size
-        v0 = u - stride if coord > 0 else u
-        v1 = u + stride if coord < size - 1 else u
-        lo = nx
-        hi = -1
-        for v in range(v0, v1 + 1, stride):
-            if sband[v, 0] <= sband[v, 1]:
-                lo = min(lo, sband[v, 0])
-                hi = max(hi, sband[v, 1])
-        dband[u, 0] = lo
-        dband[u, 1] = hi
-        if lo > hi:
-            continue
-        nb = hi + 1 - lo
-        for w in range(nw):
-            dw = dst[u, w, lo : hi + 1]
-            for i in range(nb):
-                dw[i] = _ZERO
-            for v in range(v0, v1 + 1, stride):
-                _or_into(dw, src[v, w], lo, sband[v, 0], sband[v, 1])
-
-
-@njit
-def _apply_heading(
-    k: int,
-    level: int,
-    Wt: U64Array,
-    nA: U64Array,
-    nB: U64Array,
-    band_a: I32Array,
-    band_b: I32Array,
-    D1: U64Array,
-    D2: U64Array,
-    band_1: I32Array,
-    band_2: I32Array,
-    ch: I32Array,
-    lattice: I32Array,
-    Pt: U64Array,
-    pads: I32Array,
-) -> int:
-    """Join nA[p] and the neighbours' nB[u] into every layer p at heading k; return rows changed.
-
-    The union of nB over the 3 x 3 x 3 lattice box around p (clipped: N(p) and p) is
-    taken separably, one axis at a time, in D1, D2 (m, nw, nx) with bands band_1, band_2
-    (m, 2): one heading's scratch, small enough to stay in the core's cache from one
-    axis to the next. It holds nB[p] too, which adds nothing: nB[p] is inside A_p, so
-    inside W_p or nA[p].
-    Writes ch[:, k], heading k of Wt and of Pt only.
-    """
-    m = Wt.shape[0]
-    nw = nA.shape[2]
-    nx = nA.shape[3]
-    n_c = lattice[2]
-    n_b = lattice[1]
-    n_a = lattice[0]
-    _dilate(nB[k], band_b[:, k], D1, band_1, 1, n_c)
-    _dilate(D1, band_1, D2, band_2, n_c, n_b)
-    _dilate(D2, band_2, D1, band_1, n_c * n_b, n_a)
-    acc = np.empty((nw, nx), dtype=np.uint64)
-    n_changed = 0
-    for p in range(m):
-        if p + 1 < m:
-            _prefetch_join(p + 1, k, level, Wt, Pt, band_a, band_1, pads)
-        ch[p, k, 0] = nx
-        ch[p, k, 1] = -1
-        a0, a1 = band_a[p, k, 0], band_a[p, k, 1]
-        d0, d1 = band_1[p, 0], band_1[p, 1]
-        lo = min(a0, d0)
-        hi = max(a1, d1)
-        if lo > hi:
-            continue
-        if not _join_rows(acc, nA[k, p], (a0, a1), D1[p], (d0, d1), Wt[p, k], lo, hi, pads):
-            continue
-        _set_planes(Pt[p, k], acc, lo, hi, level)
-        first, last, n = _changed_rows(acc, lo, hi + 1 - lo)
-        n_changed += n
-        ch[p, k, 0] = first
-        ch[p, k, 1] = last
-    return n_changed
-
-
-@njit_inline
-def _prefetch_join(
-    p: int, k: int, level: int, Wt: U64Array, Pt: U64Array, band_a: I32Array,
-    band_1: I32Array, pads: I32Array,
-) -> None:  # fmt: skip
-    """Prefetch the rows layer p's join at heading k writes.
-
-    Its winning words and the value planes that `level` sets, over the band of its new
-    states (0.85x the join's time at the paper grid).
-    """
-    lo = min(band_a[p, k, 0], band_1[p, 0])
-    hi = max(band_a[p, k, 1], band_1[p, 1])
-    if lo > hi:
-        return
-    px, pw = pads[0], pads[2]
-    for w in range(Pt.shape[2]):
-        prefetch_rows(Wt[p, k, pw + w], px + lo, px + hi)
-        lv = level
-        q = 0
-        while lv > 0:
-            if lv & 1:
-                prefetch_rows(Pt[p, k, w, q], lo, hi)
-            lv >>= 1
-            q += 1
-
-
-@njit_inline
-def _join_rows(
-    acc: U64Array, new_a: U64Array, band_new_a: tuple[int, int], dilated_b: U64Array,
-    band_dilated_b: tuple[int, int], Wt_pk: U64Array, lo: int, hi: int, pads: I32Array,
-) -> bool:  # fmt: skip
-    """Join rows [lo, hi] of one layer and heading: acc = (nA | dilated nB) and not W; W |= acc.
-
-    new_a, dilated_b (nw, nx) with their bands [lo, hi]; Wt_pk (nw + 2 pw, nx + 2 px) the
-    layer's winning words at this heading; acc (nw, nx) gets the states that joined in
-    its first hi + 1 - lo rows. Return whether any did.
-    """
-    px, pw = pads[0], pads[2]
-    nb = hi + 1 - lo
-    joined = _ZERO
-    for w in range(acc.shape[0]):
-        aw = acc[w, :nb]
-        for i in range(nb):
-            aw[i] = _ZERO
-        _or_into(aw, new_a[w], lo, band_new_a[0], band_new_a[1])
-        _or_into(aw, dilated_b[w], lo, band_dilated_b[0], band_dilated_b[1])
-        cur = Wt_pk[pw + w, px + lo : px + hi + 1]
-        for i in range(nb):
-            f = aw[i] & ~cur[i]
-            aw[i] = f
-            cur[i] |= f
-            joined |= f
-    return bool(joined != _ZERO)
-
-
-@njit_inline
-def _set_planes(Pt_pk: U64Array, acc: U64Array, lo: int, hi: int, level: int) -> None:
-    """Set the value bit planes Pt_pk (nw, n_planes, nx) of acc's states to `level`.
-
-    acc (nw, nx) holds rows lo .. hi from index 0; a plane q gets them where bit q of
-    level is set (the others stay zero: the states are new).
-    """
-    nb = hi + 1 - lo
-    for w in range(acc.shape[0]):
-        aw = acc[w, :nb]
-        q = 0
-        lv = level
-        while lv > 0:
-            if lv & 1:
-                pq = Pt_pk[w, q, lo : hi + 1]
+                old = (Wt[u, k0, pw + w, px + lo : px + hi + 1] if c == 0
+                       else Bt[u, k0, w, lo : hi + 1])
                 for i in range(nb):
-                    pq[i] |= aw[i]
-            lv >>= 1
-            q += 1
+                    g = vw[i] & ~old[i] & ow[i]
+                    ow[i] = g
+                    r[i] |= g
+            first, last = row_ends(rows, lo, nb, nx)
+            band[u, k0, 0], band[u, k0, 1] = first, last
+            _store_new(nA if c == 0 else nB, Bt, c, u, k0, out, first, last)
 
 
 @njit_inline
-def _changed_rows(acc: U64Array, lo: int, nb: int) -> tuple[int, int, int]:
-    """Return (first, last, count) of the rows lo + t, t < nb, where acc (nw, nx) has a bit.
+def _store_new(
+    dst: U64Array, Bt: U64Array, c: int, u: int, k0: int, out: U64Array, first: int,
+    last: int,
+) -> None:  # fmt: skip
+    """Store the new states out[:, first .. last] as dst[k0, u] (class 1: into Bt[u, k0] too).
 
-    (-1, -1, 0): none.
+    Only the rows between the first and last holding a new state are written, never
+    read elsewhere: 90 % of class 0's tested rows and 40 % of class 1's hold none, and
+    their stores were a third of a level's memory traffic.
     """
-    first = -1
-    last = -1
-    n = 0
-    for t in range(nb):
-        row = _ZERO
-        for w in range(acc.shape[0]):
-            row |= acc[w, t]
-        if row != _ZERO:
-            n += 1
-            if first < 0:
-                first = lo + t
-            last = lo + t
-    return first, last, n
+    n = last + 1 - first
+    for w in range(out.shape[0]):
+        src = out[w, first : last + 1]
+        dw = dst[k0, u, w, first : last + 1]
+        for i in range(n):
+            dw[i] = src[i]
+        if c == 1:
+            bw = Bt[u, k0, w, first : last + 1]
+            for i in range(n):
+                bw[i] |= src[i]
 
 
 @njit
@@ -489,7 +289,7 @@ def advance_serial(
         _sweep_input(u, Wt, Bt, Vt, nA, nB, band_a, band_b, ch, succ, heading, px, pw)
     n = 0
     for k in range(Wt.shape[1]):
-        n += _apply_heading(
+        n += apply_heading(
             k, level + 1, Wt, nA, nB, band_a, band_b, D1[0], D2[0], band_1[0], band_2[0], ch,
             lattice, Pt, pads,
         )  # fmt: skip
@@ -534,7 +334,7 @@ def advance_parallel(
     counts = np.zeros(slots, dtype=np.int64)
     for t in prange(slots):
         for k in range(t, npsi, slots):
-            counts[t] += _apply_heading(
+            counts[t] += apply_heading(
                 k, level + 1, Wt, nA, nB, band_a, band_b, D1[t], D2[t], band_1[t], band_2[t],
                 ch, lattice, Pt, pads,
             )  # fmt: skip

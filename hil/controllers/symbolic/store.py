@@ -87,9 +87,9 @@ _STALE_TMP_S = 3600.0  # a temporary file this old is a writer's that died
 # Sources whose change may change a solve's result (the tables' own key covers the
 # abstraction; the masks are hashed into the key).
 _SOLVER_SOURCES = (
-    "synthesis.py", "frontier_kernel.py", "planes_kernel.py", "box_test.py", "levels.py",
-    "kernels.py", "lattice.py", "safety.py", "safety_kernel.py", "store.py", "stored.py",
-    "viable.py",
+    "synthesis.py", "frontier_kernel.py", "planes_kernel.py", "planes_join.py", "box_test.py",
+    "levels.py", "kernels.py", "lattice.py", "safety.py", "safety_kernel.py", "store.py",
+    "stored.py", "viable.py",
 )
 
 
