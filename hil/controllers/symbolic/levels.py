@@ -305,6 +305,10 @@ class LevelSolver:
             return self._wt, self._pt
         if self._early is not None:  # prepared: no page faults on the way to the vessel
             winning, self._early = self._early, None
-            np.copyto(winning, self._wt)
+            # Zero and so is the solve's padding (half the words): only the grid is copied.
+            px, _, pw = (int(v) for v in self.pads)
+            grid = (slice(None), slice(None), slice(pw, winning.shape[2] - pw),
+                    slice(px, winning.shape[3] - px))
+            np.copyto(winning[grid], self._wt[grid])
             return winning, self._pt
         return self._wt.copy(), self._pt

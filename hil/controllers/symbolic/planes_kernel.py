@@ -85,7 +85,20 @@ def nested_classes(succ: I32Array, heading: I32Array, viable: U64Array) -> bool:
         np.all(heading[1, :, 0] <= heading[0, :, 0])
         and np.all(heading[1, :, 1] >= heading[0, :, 1])
     )
-    return boxes and heads and not bool(np.any(viable[1] & ~viable[0]))
+    return boxes and heads and _contains(viable[0].reshape(-1), viable[1].reshape(-1))
+
+
+@njit
+def _contains(outer: U64Array, inner: U64Array) -> bool:
+    """Return whether every bit of inner is set in outer (1-D, same length).
+
+    Without numpy's temporaries: two 27-MB arrays' page faults cost more than the test
+    (7 -> 2 ms at the paper grid).
+    """
+    extra = _ZERO
+    for i in range(outer.shape[0]):
+        extra |= inner[i] & ~outer[i]
+    return extra == _ZERO
 
 
 @njit

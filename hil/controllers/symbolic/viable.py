@@ -265,7 +265,7 @@ def _changed_columns(before: U64Array | None, after: U64Array) -> I32Array:
     if before is None or before.shape != after.shape:
         return out
     changed = np.any(before != after, axis=2)  # (n_ranges, nx)
-    for h in range(n_ranges):
-        columns = np.flatnonzero(changed[h])
-        out[h] = (columns[0], columns[-1]) if columns.size else (nx, -1)
+    some = changed.any(axis=1)
+    out[:, 0] = np.where(some, np.argmax(changed, axis=1), nx)
+    out[:, 1] = np.where(some, nx - 1 - np.argmax(changed[:, ::-1], axis=1), -1)
     return out
