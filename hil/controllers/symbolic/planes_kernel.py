@@ -98,7 +98,7 @@ def _contains(outer: U64Array, inner: U64Array) -> bool:
     extra = _ZERO
     for i in range(outer.shape[0]):
         extra |= inner[i] & ~outer[i]
-    return extra == _ZERO
+    return bool(extra == _ZERO)
 
 
 @njit
