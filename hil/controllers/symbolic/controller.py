@@ -35,7 +35,7 @@ I32Array = NDArray[np.int32]
 
 __all__ = ["CellDecision", "Controller", "SynthesisStats"]
 
-_FORMAT = "hil-symbolic-controller-5"
+_FORMAT = "hil-symbolic-controller-6"  # 6: viable words x contiguous
 _TABLE_FIELDS = ("succ", "heading", "tube_x0", "tube_n", "tube_y", "hull_psi", "yaw_index")
 
 
@@ -111,7 +111,7 @@ class Controller:
         lattice: The inputs' one-step neighbourhoods.
         winning: Winning bits, shape (m, npsi, nw + 2 pw, nx + 2 px) (:mod:`kernels`).
         planes: Value bit planes, shape (m, npsi, nw, n_planes, nx).
-        viable: Tube-free bits per class, shape (3, m, nx, npsi, nw).
+        viable: Tube-free bits per class, shape (3, m, npsi, nw, nx) (:mod:`viable`).
         pads: (px, ph, pw): `winning`'s padding px in x cells and pw in words (ph, the
             frontier kernel's heading padding, is not used by this layout).
         obstacles: Cells touching an inflated obstacle, shape (nx, ny) (pictures).
@@ -203,7 +203,7 @@ class Controller:
 
     @property
     def viable_words(self) -> U64Array:
-        """Return the tube-free bits per class, shape (3, m, nx, npsi, nw) (do not write)."""
+        """Return the tube-free bits per class, shape (3, m, npsi, nw, nx) (do not write)."""
         return self._viable
 
     @property
@@ -529,7 +529,7 @@ class Controller:
                 tables.succ.shape != (N_CLASSES, grid.npsi, m, 4)
                 or planes.shape[:3] != (m, grid.npsi, (grid.ny + 63) // 64)
                 or planes.shape[4] != grid.nx
-                or viable.shape != (N_CLASSES, m, grid.nx, grid.npsi, (grid.ny + 63) // 64)
+                or viable.shape != (N_CLASSES, m, grid.npsi, (grid.ny + 63) // 64, grid.nx)
                 or winning.shape[0] != m
                 or (safe is not None and safe.shape != winning.shape)
             ):

@@ -3,7 +3,7 @@
 The winning sets and values are in the fixed point's own bit layout (:mod:`planes_kernel`),
 layer-major with x contiguous: W of shape (m, npsi, nw + 2 pw, nx + 2 px), value bit
 planes of shape (m, npsi, nw, n_planes, nx), so a finished solve hands its arrays over
-without a copy; viable words of shape (3, m, nx, npsi, nw).
+without a copy; viable words of shape (3, m, npsi, nw, nx) (:mod:`viable`).
 """
 
 from __future__ import annotations
@@ -150,7 +150,7 @@ def safe_input_indices(
     for c_idx in range(n_neighbours[p] + 1):
         u = p if c_idx == 0 else neighbours[p, c_idx - 1]
         cls = 2 if first else (0 if u == p else 1)
-        if (viable[cls, u, i, k, w] >> b) & _ONE == _ZERO:
+        if (viable[cls, u, k, w, i] >> b) & _ONE == _ZERO:
             continue
         worst = _worst_successor(W, planes, pads, succ, heading, ny, cls, u, i, j, k, limit)
         if worst >= 0:
@@ -230,7 +230,7 @@ def staying_input_indices(
     for c_idx in range(n_neighbours[p] + 1):
         u = p if c_idx == 0 else neighbours[p, c_idx - 1]
         cls = 2 if first else (0 if u == p else 1)
-        if (viable[cls, u, i, k, w] >> b) & _ONE == _ZERO:
+        if (viable[cls, u, k, w, i] >> b) & _ONE == _ZERO:
             continue
         if _worst_successor(S, no_planes, pads, succ, heading, ny, cls, u, i, j, k, 1) >= 0:
             out[n] = u

@@ -21,7 +21,6 @@ from hil.controllers.symbolic.planes_kernel import (
     advance_serial,
     init_planes_state,
     solve_serial,
-    transpose_viable,
 )
 from hil.core.arrays import U64Array
 from hil.core.jit import njit, numba_threads, thread_limit
@@ -65,15 +64,14 @@ _Args = tuple[
 class Scratch:
     """A solve's working arrays that no controller keeps, for the next solve to reuse.
 
-    A fresh allocation of these (about 140 MB at the paper grid) costs its page faults
+    A fresh allocation of these (about 90 MB at the paper grid) costs its page faults
     inside the solve, 0.1-0.2 s on this machine; a reused set costs a memset. Shapes:
-    vt (2, m, npsi, nw, nx); bt (m, npsi, nw, nx); na, nb (npsi, m, nw, nx), heading
-    first (:mod:`planes_kernel`); ch, band_a, band_b
+    bt (m, npsi, nw, nx); na, nb (npsi, m, nw, nx), heading first
+    (:mod:`planes_kernel`); ch, band_a, band_b
     (m, npsi, 2); the join's dilation scratch d1, d2 (slots, m, nw, nx) and band_1,
     band_2 (slots, m, 2): one heading's at a time per thread (slots: the solve's threads).
     """
 
-    vt: U64Array
     bt: U64Array
     na: U64Array
     nb: U64Array
@@ -94,10 +92,7 @@ class Scratch:
         d1, d2 = (np.zeros((slots, m, nw, nx), dtype=np.uint64) for _ in range(2))
         ch, band_a, band_b = (np.zeros((m, npsi, 2), np.int32) for _ in range(3))
         band_1, band_2 = (np.zeros((slots, m, 2), np.int32) for _ in range(2))
-        return Scratch(
-            np.zeros((2, *rows), dtype=np.uint64), bt, na, nb, d1, d2, ch, band_a, band_b,
-            band_1, band_2,
-        )  # fmt: skip
+        return Scratch(bt, na, nb, d1, d2, ch, band_a, band_b, band_1, band_2)
 
     def fits(self, m: int, npsi: int, nw: int, nx: int, slots: int = 1) -> bool:
         """Return whether this set serves a solve of that size on `slots` join threads."""
@@ -156,7 +151,7 @@ class LevelSolver:
 
     Args:
         goal: Target words, shape (nx, npsi, nw) (bit b of word w: cell j = 64 w + b).
-        viable: Viable words, shape (3, m, nx, npsi, nw) (:func:`sweep.viable_words`).
+        viable: Viable words, shape (3, m, npsi, nw, nx) (:mod:`viable`), read as they are.
         pads: (px, ph, pw) of the winning array, as :mod:`sweep` needs them.
         succ: Successor boxes (2, npsi, m, 4); heading: heading ranges (2, m, 2).
         lattice_shape: Points per axis of the input lattice (input (a, b, c) is index
@@ -203,8 +198,7 @@ class LevelSolver:
         self._scratch = scratch
         self._ch = scratch.ch
         init_planes_state(goal, self._wt, self._ch, px, pw)
-        self._vt = scratch.vt
-        transpose_viable(viable, self._vt)
+        self._vt = viable
         self._bt = scratch.bt
         self._na = scratch.na
         self._nb = scratch.nb

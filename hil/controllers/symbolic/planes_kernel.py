@@ -11,8 +11,8 @@ Layout (x contiguous, so every step is a vector operation over a band of x rows)
 - ``Bt`` (m, npsi, nw, nx): the class-1 set B_u so far; ``nA``, ``nB`` (npsi, m, nw, nx):
   the states that joined A_u / B_u at the level being computed, heading first, so that a
   heading's join reads its rows of every layer from one contiguous block.
-- ``Vt`` (2, m, npsi, nw, nx): viable words of classes 0 and 1 (:mod:`sweep`'s viable,
-  transposed).
+- ``Vt`` (3, m, npsi, nw, nx): the viable words (:mod:`viable`'s layout, read as they
+  are; classes 0 and 1).
 - ``ch`` (m, npsi, 2): the x range [lo, hi] of the rows of (u, k) that changed at the
   last level (lo > hi: none); ``band_a``, ``band_b`` (m, npsi, 2): the x range of the
   rows of nA / nB that hold any bit.
@@ -62,7 +62,6 @@ __all__ = [
     "init_planes_state",
     "nested_classes",
     "solve_serial",
-    "transpose_viable",
 ]
 
 _ZERO = np.uint64(0)
@@ -99,18 +98,6 @@ def _contains(outer: U64Array, inner: U64Array) -> bool:
     for i in range(outer.shape[0]):
         extra |= inner[i] & ~outer[i]
     return bool(extra == _ZERO)
-
-
-@njit
-def transpose_viable(viable: U64Array, out: U64Array) -> None:
-    """Fill out (2, m, npsi, nw, nx) from viable (3, m, nx, npsi, nw), classes 0 and 1."""
-    _, m, nx, npsi, nw = viable.shape
-    for c in range(2):
-        for u in range(m):
-            for i in range(nx):
-                for k in range(npsi):
-                    for w in range(nw):
-                        out[c, u, k, w, i] = viable[c, u, i, k, w]
 
 
 @njit

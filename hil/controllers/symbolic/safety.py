@@ -18,7 +18,6 @@ from numpy.typing import NDArray
 
 from hil.controllers.symbolic.errors import GridError
 from hil.controllers.symbolic.levels import Scratch
-from hil.controllers.symbolic.planes_kernel import transpose_viable
 from hil.controllers.symbolic.safety_kernel import (
     init_safety_state,
     safety_iterate_parallel,
@@ -64,7 +63,8 @@ def solve_safe_set(
     """Return the largest set of (cell, reference) states the vessel can stay in forever.
 
     Args:
-        viable: Tube-free words per class, shape (3, m, nx, npsi, nw) (classes 0, 1 used).
+        viable: Tube-free words per class, shape (3, m, npsi, nw, nx) (:mod:`viable`;
+            classes 0, 1 used).
         pads: (px, ph, pw) of the result's padding (ph unused); px and pw must hold every
             successor box, as for the reach-avoid solve.
         succ: Successor boxes (ox0, ox1, oy0, oy1), shape (3, npsi, m, 4).
@@ -73,25 +73,21 @@ def solve_safe_set(
         n_neighbours: How many each input has, (m,).
         threads: 1 runs on the calling thread; more use numba's threads.
         scratch: The working arrays of a finished reach solve on these same viable words
-            (:class:`~hil.controllers.symbolic.levels.Scratch`), or None: its transposed
-            viable words are used as they are and its class-1 and new-state arrays hold
-            A and B, instead of 200 MB of fresh memory whose page faults cost 0.2-0.4 s
-            of the full solve at the paper grid. The caller must not use them meanwhile.
+            (:class:`~hil.controllers.symbolic.levels.Scratch`), or None: its new-state
+            arrays hold A and B, instead of fresh memory whose page faults would fall inside
+            the full solve. The caller must not use them meanwhile.
 
     Raises:
         GridError: The iteration did not converge (a bug, never expected).
     """
-    _, m, nx, npsi, nw = viable.shape
+    _, m, npsi, nw, nx = viable.shape
     px, _, pw = (int(p) for p in pads)
     rows = (m, npsi, nw, nx)
     at_size = m * npsi * nw * nx
-    if scratch is not None and scratch.vt.shape == (2, *rows) and scratch.na.size == at_size:
-        vt = scratch.vt
+    if scratch is not None and scratch.na.size == at_size:
         at = scratch.na.reshape(rows)  # contiguous: a view, written before it is read
         bt = scratch.nb.reshape(rows)
     else:
-        vt = np.empty((2, *rows), dtype=np.uint64)
-        transpose_viable(viable, vt)
         at = np.empty(rows, dtype=np.uint64)
         bt = np.empty(rows, dtype=np.uint64)
     st = np.zeros((m, npsi, nw + 2 * pw, nx + 2 * px), dtype=np.uint64)
@@ -100,7 +96,7 @@ def solve_safe_set(
     band_b = np.empty((m, npsi, 2), dtype=np.int32)
     nbr = np.ascontiguousarray(neighbours, dtype=np.int32)
     n_nbr = np.ascontiguousarray(n_neighbours, dtype=np.int32)
-    init_safety_state(vt, nbr, n_nbr, st, at, bt, ch, px, pw)
+    init_safety_state(viable, nbr, n_nbr, st, at, bt, ch, px, pw)
     args = (
         st, at, bt, band_a, band_b, ch, np.ascontiguousarray(succ, dtype=np.int32),
         np.ascontiguousarray(heading, dtype=np.int32), nbr, n_nbr,

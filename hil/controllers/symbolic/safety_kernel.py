@@ -20,9 +20,9 @@ lose states). Then each S_p is recomputed on the rows where A_p or some B_u, u i
 lost a state.
 
 Layout (:mod:`planes_kernel`'s, x contiguous): ``St`` (m, npsi, nw + 2 pw, nx + 2 px)
-with zero padding; ``At``, ``Bt`` (m, npsi, nw, nx); ``Vt`` (2, m, npsi, nw, nx); ``ch``,
-``band_a``, ``band_b`` (m, npsi, 2) x ranges [lo, hi] of the rows that lost bits at the
-last iteration (lo > hi: none).
+with zero padding; ``At``, ``Bt`` (m, npsi, nw, nx); ``Vt`` (3, m, npsi, nw, nx) (the
+viable words, :mod:`viable`); ``ch``, ``band_a``, ``band_b`` (m, npsi, 2) x ranges
+[lo, hi] of the rows that lost bits at the last iteration (lo > hi: none).
 """
 
 from __future__ import annotations

@@ -127,7 +127,7 @@ class SolvedLayout:
         winning: Winning bits without padding, shape (m, npsi, nw, nx) (bit b of word w
             at (k, i) in layer p: cell (i, 64 w + b, k) wins with reference p).
         planes: Value bit planes, shape (m, npsi, nw, n_planes, nx).
-        viable: Tube-free words per class, shape (3, m, nx, npsi, nw) (stored: reading
+        viable: Tube-free words per class, shape (3, m, npsi, nw, nx) (stored: reading
             them is cheaper than rebuilding them from the masks).
         safe: The safety set's bits without padding, shape (m, npsi, nw, nx)
             (:mod:`~hil.controllers.symbolic.safety`).

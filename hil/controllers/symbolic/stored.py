@@ -65,7 +65,7 @@ class StoredControllers:
         nw = (ny + 63) // 64
         words = (m, npsi, nw, nx)
         solved = self._store.load(
-            key, (words, (m, npsi, nw, self._n_planes, nx), (N_CLASSES, m, nx, npsi, nw), words)
+            key, (words, (m, npsi, nw, self._n_planes, nx), (N_CLASSES, m, npsi, nw, nx), words)
         )
         if solved is None:
             return None

@@ -37,7 +37,7 @@ from hil.controllers.symbolic.safety import solve_safe_set
 from hil.controllers.symbolic.sources import ControllerSources
 from hil.controllers.symbolic.store import ControllerStore, solve_key
 from hil.controllers.symbolic.stored import StoredControllers
-from hil.controllers.symbolic.viable import ViableWords
+from hil.controllers.symbolic.viable import ViableWords, cell_major
 from hil.core.arrays import BoolArray, U64Array
 from hil.core.memory import require_bytes
 
@@ -171,8 +171,7 @@ class Synthesizer:
             + m * npsi * (nw + 2 * pw) * (nx + 2 * px) * 8 * (3 if self._prepare else 1)
             + ((N_PLANES + N_CLASSES) * rows_words if self._prepare else 0)  # the next
             # solve's outputs and viable words, prepared
-            + (N_CLASSES - 1 + 3 + N_PLANES + 2 * (self._threads or _max_threads()) / npsi)
-            * rows_words
+            + (3 + N_PLANES + 2 * (self._threads or _max_threads()) / npsi) * rows_words
         )
 
     @property
@@ -306,7 +305,7 @@ class Synthesizer:
         return controller
 
     def _words(self, free: BoolArray, target: BoolArray, threads: int) -> tuple[U64Array, U64Array]:
-        """Return the viable words (3, m, nx, npsi, nw) and goal words (nx, npsi, nw)."""
+        """Return the viable words (3, m, npsi, nw, nx) and goal words (nx, npsi, nw)."""
         nx, ny, npsi = self._tables.grid.shape
         nw = (ny + 63) // 64
         goal_cells = np.ascontiguousarray(np.transpose(target, (0, 2, 1)).reshape(-1, ny))
@@ -351,7 +350,7 @@ class Synthesizer:
         kill = np.zeros((2, m, n_rows, nw), dtype=np.uint8)
         lat = self._lattice
         args = (
-            W, b_set, viable, planes, self._pads, t.succ, t.heading, self._reach,
+            W, b_set, cell_major(viable), planes, self._pads, t.succ, t.heading, self._reach,
             self._h_reach, lat.neighbours, lat.n_neighbours, chmask, umask, has_a, has_b,
             new_a, new_b, kill,
         )  # fmt: skip

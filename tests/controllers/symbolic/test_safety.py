@@ -32,7 +32,8 @@ def _dense_safe(c: Controller) -> BoolArray:
     t, g = c.tables, c.grid
     nx, ny, npsi = g.shape
     m = t.n_inputs
-    viable = _unpack(c.viable_words, ny)  # (3, m, nx, npsi, ny)
+    cells = np.transpose(c.viable_words, (0, 1, 4, 2, 3))  # (3, m, nx, npsi, nw)
+    viable = _unpack(np.ascontiguousarray(cells), ny)  # (3, m, nx, npsi, ny)
     V = [np.transpose(viable[cls], (0, 1, 3, 2)) for cls in (0, 1)]  # (m, nx, ny, npsi)
     nbr = [c.lattice.neighbours[p, : c.lattice.n_neighbours[p]] for p in range(m)]
 

@@ -104,7 +104,8 @@ def test_viable_words_are_the_free_tubes(problem: SymbolicProblem, controller: C
     t = controller.tables
     g = t.grid
     free = tiny.flat_free(problem, t)
-    viable = _bits(controller._viable)[..., : g.ny]  # (3, m, nx, npsi, ny)
+    cells = np.transpose(controller._viable, (0, 1, 4, 2, 3))  # (3, m, nx, npsi, nw)
+    viable = _bits(np.ascontiguousarray(cells))[..., : g.ny]  # (3, m, nx, npsi, ny)
     rng = np.random.default_rng(2)
     checked = 0
     for c in range(3):
