@@ -50,7 +50,6 @@ U8Array = NDArray[np.uint8]
 __all__ = [
     "advance_level_parallel",
     "advance_level_serial",
-    "erode_free",
     "init_layers",
     "shifted",
     "start_levels",
@@ -66,32 +65,6 @@ _63 = np.uint64(63)
 def shifted(lo: np.uint64, hi: np.uint64, s: np.uint64) -> np.uint64:
     """Return bits s .. s + 63 of the 128-bit value hi:lo (0 <= s < 64), without a branch."""
     return (lo >> s) | ((hi << _ONE) << (_63 - s))
-
-
-@njit
-def erode_free(F0: U64Array, out: U64Array, r0: int = 0, r1: int = -1) -> None:
-    """Fill out (layers, rows, words) from F0 (rows, words): y-runs of free cells.
-
-    Layer h has bit j set iff bits j .. j + h of F0 all are (F0's last word pads). Only
-    rows r0 .. r1 are written (r1 < 0: to the last): each row erodes on its own.
-    """
-    n_rows, n_w = F0.shape
-    if r1 < 0:
-        r1 = n_rows - 1
-    for r in range(r0, r1 + 1):
-        for w in range(n_w):
-            out[0, r, w] = F0[r, w]
-    for h in range(1, out.shape[0]):
-        q = h >> 6
-        s = np.uint64(h & 63)
-        for r in range(r0, r1 + 1):
-            for w in range(n_w):
-                if w + q + 1 < n_w:
-                    out[h, r, w] = out[h - 1, r, w] & shifted(F0[r, w + q], F0[r, w + q + 1], s)
-                elif w + q < n_w:
-                    out[h, r, w] = out[h - 1, r, w] & (F0[r, w + q] >> s)
-                else:
-                    out[h, r, w] = _ZERO
 
 
 @njit

@@ -24,14 +24,14 @@ from numba import prange
 from numpy.typing import NDArray
 
 from hil.controllers.symbolic.abstraction import N_CLASSES, Tables
-from hil.controllers.symbolic.frontier_kernel import erode_free, shifted
+from hil.controllers.symbolic.frontier_kernel import shifted
 from hil.controllers.symbolic.kernels import pack_rows
 from hil.core.arrays import BoolArray, U64Array
 from hil.core.jit import njit, njit_inline, njit_parallel, numba_threads, thread_limit
 
 I32Array = NDArray[np.int32]
 
-__all__ = ["ViableWords", "cell_major"]
+__all__ = ["ViableWords", "cell_major", "erode_free"]
 
 _ZERO = np.uint64(0)
 
@@ -93,8 +93,8 @@ class ViableWords:
         else:
             viable = np.zeros((N_CLASSES, m, npsi, nw, nx), dtype=np.uint64)
         slots = thread_limit(threads)
-        f_pad = np.zeros((slots, nx + 2 * px, nw + 2 * pw), dtype=np.uint64)
-        f_eroded = np.zeros((slots, self.f_layers, nx + 2 * px, nw + 2 * pw), dtype=np.uint64)
+        f_pad = np.zeros((slots, nw + 2 * pw, nx + 2 * px), dtype=np.uint64)
+        f_eroded = np.zeros((slots, self.f_layers, nw + 2 * pw, nx + 2 * px), dtype=np.uint64)
         args = (free_words, columns, self._order, self._starts, t.tube_x0, t.tube_n, t.tube_y,
                 px, pw, f_pad, f_eroded, viable)
         if slots == 1:
@@ -125,6 +125,43 @@ class ViableWords:
                 self._base = (last[1], base)
 
 
+@njit
+def erode_free(F0: U64Array, out: U64Array, r0: int = 0, r1: int = -1) -> None:
+    """Fill out (layers, words, rows) from F0 (words, rows): y-runs of free cells.
+
+    Layer h has bit j set iff bits j .. j + h of F0 all are (F0's last word pads). Only
+    rows (x) r0 .. r1 are written (r1 < 0: to the last): each row erodes on its own, and
+    rows are contiguous, so each step is one loop over the rows.
+    """
+    n_w, n_rows = F0.shape
+    if r1 < 0:
+        r1 = n_rows - 1
+    n = r1 + 1 - r0
+    for w in range(n_w):
+        src = F0[w, r0 : r1 + 1]
+        dst = out[0, w, r0 : r1 + 1]
+        for t in range(n):
+            dst[t] = src[t]
+    for h in range(1, out.shape[0]):
+        q = h >> 6
+        s = np.uint64(h & 63)
+        for w in range(n_w):
+            prev = out[h - 1, w, r0 : r1 + 1]
+            dst = out[h, w, r0 : r1 + 1]
+            if w + q + 1 < n_w:
+                lo_w = F0[w + q, r0 : r1 + 1]
+                hi_w = F0[w + q + 1, r0 : r1 + 1]
+                for t in range(n):
+                    dst[t] = prev[t] & shifted(lo_w[t], hi_w[t], s)
+            elif w + q < n_w:
+                lo_w = F0[w + q, r0 : r1 + 1]
+                for t in range(n):
+                    dst[t] = prev[t] & (lo_w[t] >> s)
+            else:
+                for t in range(n):
+                    dst[t] = _ZERO
+
+
 @njit_inline
 def _tube_words(
     Fe: U64Array, cls: int, k: int, u: int, tube_x0: I32Array, tube_n: I32Array,
@@ -133,7 +170,7 @@ def _tube_words(
     """Fill out[cls, u, k, :, i] for i in [i_lo, i_hi] (clipped to the grid): free tubes.
 
     Bit b of word w: the tube (class cls, input u, heading k) from cell (i, 64 w + b) is
-    free. Fe holds the free cells eroded along y, shape (layers, nx + 2 px, nw + 2 pw); out
+    free. Fe holds the free cells eroded along y, shape (layers, nw + 2 pw, nx + 2 px); out
     has shape (3, m, npsi, nw, nx); acc (nw, nx) is scratch. One tube column at a time
     over every row, so that the column's layer, word and shift are read once (a new
     layout's words 66 -> 53-57 ms at the paper grid, one thread).
@@ -156,8 +193,8 @@ def _tube_words(
         s = np.uint64(y0 & 63)
         for w in range(nw):
             a = pw + w + (y0 >> 6)
-            f0 = layer[x0 + c : x0 + c + n, a]
-            f1 = layer[x0 + c : x0 + c + n, a + 1]
+            f0 = layer[a, x0 + c : x0 + c + n]
+            f1 = layer[a + 1, x0 + c : x0 + c + n]
             aw = acc[w, :n]
             for t in range(n):
                 aw[t] &= shifted(f0[t], f1[t], s)
@@ -181,13 +218,13 @@ def _range_viable(
     n_max = tube_n.max()
     if starts[h] == starts[h + 1] or columns[h, 0] > columns[h, 1]:
         return
-    for i in range(nx):
-        for w in range(nw):
-            Fpad[px + i, pw + w] = free_words[h, i, w]
+    for w in range(nw):
+        for i in range(nx):
+            Fpad[pw + w, px + i] = free_words[h, i, w]
     # The tubes below read columns lo - n + 1 .. hi + n - 1 only (n <= n_max): the
     # other rows of Fe are neither eroded nor read.
     r0 = max(px + columns[h, 0] - n_max + 1, 0)
-    r1 = min(px + columns[h, 1] + n_max - 1, Fpad.shape[0] - 1)
+    r1 = min(px + columns[h, 1] + n_max - 1, Fpad.shape[1] - 1)
     erode_free(Fpad, Fe, r0, r1)
     for e in range(starts[h], starts[h + 1]):
         flat = order[e]
@@ -223,8 +260,8 @@ def _all_viable(
     lists the flat (c, k, u) whose hull range is h. Only the cells whose tube crosses a
     column in columns[h] = [lo, hi] are written (lo > hi: none of range h; out holds the
     rest already): a tube is free or not by the columns it crosses alone. Fpad
-    (slots, nx + 2 px, nw + 2 pw) and Fe (slots, layers, nx + 2 px, nw + 2 pw) are zeroed
-    scratch; this serial kernel uses slot 0.
+    (slots, nw + 2 pw, nx + 2 px) and Fe (slots, layers, nw + 2 pw, nx + 2 px) are zeroed
+    scratch, x contiguous; this serial kernel uses slot 0.
     """
     n_ranges, nx, nw = free_words.shape
     acc = np.empty((nw, nx), dtype=np.uint64)

@@ -7,8 +7,9 @@ import pytest
 from numpy.typing import NDArray
 
 from hil.controllers.symbolic import Controller, SymbolicProblem
-from hil.controllers.symbolic.frontier_kernel import erode_free, init_layers, shifted, successor_run
+from hil.controllers.symbolic.frontier_kernel import init_layers, shifted, successor_run
 from hil.controllers.symbolic.kernels import layer_values, pack_rows, state_value, state_values
+from hil.controllers.symbolic.viable import erode_free
 from tests.controllers.symbolic import tiny
 
 U64Array = NDArray[np.uint64]
@@ -44,19 +45,19 @@ def test_erode_free_erodes_like_numpy() -> None:
     free = rng.random((nx, ny)) < 0.8
     nw = (ny + 63) // 64
     layers = 5
-    f0 = np.zeros((nx + 2 * px, nw + 2 * pw), dtype=np.uint64)
-    f0[px : px + nx, pw : pw + nw] = pack_rows(free)
-    f = np.zeros((layers, nx + 2 * px, nw + 2 * pw), dtype=np.uint64)
+    f0 = np.zeros((nw + 2 * pw, nx + 2 * px), dtype=np.uint64)
+    f0[pw : pw + nw, px : px + nx] = pack_rows(free).T
+    f = np.zeros((layers, nw + 2 * pw, nx + 2 * px), dtype=np.uint64)
     erode_free(f0, f)
     for h in range(layers):
-        got = _bits(f[h, px : px + nx, pw : pw + nw])
+        got = _bits(np.ascontiguousarray(f[h, pw : pw + nw, px : px + nx].T))
         padded = np.concatenate([free, np.zeros((nx, h), dtype=bool)], axis=1)
         expected = np.ones_like(free)
         for d in range(h + 1):
             expected &= padded[:, d : d + ny]
         np.testing.assert_array_equal(got[:, :ny], expected, err_msg=f"h={h}")
-    assert not f[:, :px].any()  # rows outside the grid stay empty
-    assert not f[:, :, :pw].any()
+    assert not f[:, :, :px].any()  # rows outside the grid stay empty
+    assert not f[:, :pw].any()
 
 
 def test_successor_run_matches_numpy() -> None:
