@@ -198,7 +198,6 @@ class LevelSolver:
         self._scratch = scratch
         self._ch = scratch.ch
         init_planes_state(goal, self._wt, self._ch, px, pw)
-        self._vt = viable
         self._bt = scratch.bt
         self._na = scratch.na
         self._nb = scratch.nb
@@ -212,7 +211,7 @@ class LevelSolver:
         self._band_2 = scratch.band_2
         self._lattice = np.array(lattice_shape, dtype=np.int32)
         self.viable = viable
-        """The viable words it was built on (the Controller keeps them)."""
+        """The viable words it was built on (the Controller keeps them; the kernel's Vt)."""
         self.level = 0
         """Every state of value <= level is final (0: the goal)."""
         self.done = False
@@ -225,7 +224,7 @@ class LevelSolver:
 
     def _args(self) -> _Args:
         return (
-            self._wt, self._bt, self._vt, self._na, self._nb, self._band_a, self._band_b,
+            self._wt, self._bt, self.viable, self._na, self._nb, self._band_a, self._band_b,
             self._ch, self._succ, self._heading, self._d1, self._d2, self._band_1,
             self._band_2, self._lattice, self._pt, self.pads,
         )  # fmt: skip
@@ -299,7 +298,7 @@ class LevelSolver:
             return self._wt, self._pt
         if self._early is not None:  # prepared: no page faults on the way to the vessel
             winning, self._early = self._early, None
-            # Zero and so is the solve's padding (half the words): only the grid is copied.
+            # The padding (half the words) is zero in both arrays: copy the grid only.
             px, _, pw = (int(v) for v in self.pads)
             grid = (slice(None), slice(None), slice(pw, winning.shape[2] - pw),
                     slice(px, winning.shape[3] - px))

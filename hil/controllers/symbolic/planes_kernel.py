@@ -84,7 +84,7 @@ def nested_classes(succ: I32Array, heading: I32Array, viable: U64Array) -> bool:
         np.all(heading[1, :, 0] <= heading[0, :, 0])
         and np.all(heading[1, :, 1] >= heading[0, :, 1])
     )
-    return boxes and heads and bool(_contains(viable[0].reshape(-1), viable[1].reshape(-1)))
+    return boxes and heads and _contains(viable[0].reshape(-1), viable[1].reshape(-1))
 
 
 @njit
