@@ -17,19 +17,32 @@ from hil.core.jit import njit, njit_inline
 
 I32Array = NDArray[np.int32]
 
-__all__ = ["box_scratch", "box_test", "changed_band", "row_ends"]
+__all__ = ["box_scratch", "box_test", "changed_band", "row_ends", "split_box_scratch"]
 
 _ZERO = np.uint64(0)
 _ONE = np.uint64(1)
 
 
 @njit
-def box_scratch(nw: int, xp: int) -> tuple[U64Array, U64Array, U64Array]:
-    """Return box_test's scratch H ((nw + 2) xp), L and R (nw xp) for words of xp x rows."""
-    H = np.empty((nw + 2) * xp, dtype=np.uint64)
-    L = np.empty(nw * xp, dtype=np.uint64)
-    R = np.empty(nw * xp, dtype=np.uint64)
-    return H, L, R
+def box_scratch(nw: int, xp: int, nx: int) -> U64Array:
+    """Return one flat scratch for box_test on words of xp padded (nx grid) x rows.
+
+    :func:`split_box_scratch` cuts it into box_test's H, L, R, its out and a row of words.
+    One array, so that a kernel hands it on with one :func:`~hil.core.borrow.borrowed`.
+    """
+    return np.empty((nw + 2) * xp + 2 * nw * xp + nw * nx + nx, dtype=np.uint64)
+
+
+@njit_inline
+def split_box_scratch(
+    words: U64Array, nw: int, xp: int, nx: int
+) -> tuple[U64Array, U64Array, U64Array, U64Array, U64Array]:
+    """Return the views (H ((nw + 2) xp), L, R (nw xp), out (nw, nx), row (nx)) of `words`."""
+    a = (nw + 2) * xp
+    b = a + nw * xp
+    c = b + nw * xp
+    d = c + nw * nx
+    return words[:a], words[a:b], words[b:c], words[c:d].reshape((nw, nx)), words[d : d + nx]
 
 
 @njit_inline

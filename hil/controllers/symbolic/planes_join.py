@@ -98,6 +98,7 @@ def apply_heading(
     lattice: I32Array,
     Pt: U64Array,
     pads: I32Array,
+    acc: U64Array,
 ) -> int:
     """Join nA[p] and the neighbours' nB[u] into every layer p at heading k; return rows changed.
 
@@ -105,11 +106,10 @@ def apply_heading(
     taken separably, one axis at a time, in D1, D2 (m, nw, nx) with bands band_1, band_2
     (m, 2): one heading's scratch, small enough to stay in the core's cache from one
     axis to the next. It holds nB[p] too, which adds nothing: nB[p] is inside A_p, so
-    inside W_p or nA[p].
+    inside W_p or nA[p]. acc (nw, nx): scratch for one layer's joined rows.
     Writes ch[:, k], heading k of Wt and of Pt only.
     """
     m = Wt.shape[0]
-    nw = nA.shape[2]
     nx = nA.shape[3]
     n_c = lattice[2]
     n_b = lattice[1]
@@ -117,7 +117,6 @@ def apply_heading(
     _dilate(nB[k], band_b[:, k], D1, band_1, 1, n_c)
     _dilate(D1, band_1, D2, band_2, n_c, n_b)
     _dilate(D2, band_2, D1, band_1, n_c * n_b, n_a)
-    acc = np.empty((nw, nx), dtype=np.uint64)
     n_changed = 0
     for p in range(m):
         if p + 1 < m:

@@ -47,9 +47,16 @@ import numpy as np
 from numba import prange
 from numpy.typing import NDArray
 
-from hil.controllers.symbolic.box_test import box_scratch, box_test, changed_band, row_ends
+from hil.controllers.symbolic.box_test import (
+    box_scratch,
+    box_test,
+    changed_band,
+    row_ends,
+    split_box_scratch,
+)
 from hil.controllers.symbolic.planes_join import apply_heading
 from hil.core.arrays import U64Array
+from hil.core.borrow import borrowed
 from hil.core.jit import njit, njit_inline, njit_parallel
 from hil.core.prefetch import prefetch_rows
 
@@ -173,6 +180,8 @@ def _sweep_input(
     heading: I32Array,
     px: int,
     pw: int,
+    words: U64Array,
+    bands: I32Array,
 ) -> None:
     """Compute nA[u], nB[u] and their bands for the next level; add nB[u] to Bt[u].
 
@@ -183,15 +192,12 @@ def _sweep_input(
     `rows` (the OR of a row's words), so every loop runs over contiguous x and vectorizes.
     The bands of every heading are found first, so that each slab prefetches the next
     one's rows (:mod:`hil.core.prefetch`; 0.75x the sweep's time at the paper grid).
+    words: :func:`box_test.box_scratch`; bands (npsi, 2, 2): scratch, borrowed.
     """
     npsi = Wt.shape[1]
     nw = Bt.shape[2]
     nx = Bt.shape[3]
-    xp = Wt.shape[3]
-    H, L, R = box_scratch(nw, xp)
-    out = np.empty((nw, nx), dtype=np.uint64)
-    rows = np.empty(nx, dtype=np.uint64)
-    bands = np.empty((npsi, 2, 2), dtype=np.int32)
+    H, L, R, out, rows = split_box_scratch(words, nw, Wt.shape[3], nx)
     for k0 in range(npsi):
         for c in range(2):
             lo, hi = changed_band(ch, u, k0, heading[c, u, 0], heading[c, u, 1],
@@ -283,15 +289,26 @@ def advance_serial(
     """
     if level + 1 > (1 << Pt.shape[3]) - 1:
         return -1
-    m = Wt.shape[0]
+    # Borrowed views: the caller holds the arrays for the whole call (hil.core.borrow).
+    Wt, Bt, Vt, nA, nB = borrowed(Wt), borrowed(Bt), borrowed(Vt), borrowed(nA), borrowed(nB)
+    band_a, band_b, ch = borrowed(band_a), borrowed(band_b), borrowed(ch)
+    succ, heading, lattice = borrowed(succ), borrowed(heading), borrowed(lattice)
+    D1, D2, band_1, band_2 = borrowed(D1), borrowed(D2), borrowed(band_1), borrowed(band_2)
+    Pt, pads = borrowed(Pt), borrowed(pads)
+    m, npsi = Wt.shape[0], Wt.shape[1]
+    nw, nx = Bt.shape[2], Bt.shape[3]
     px, pw = pads[0], pads[2]
+    words = box_scratch(nw, Wt.shape[3], nx)
+    bands = np.empty((npsi, 2, 2), dtype=np.int32)
     for u in range(m):
-        _sweep_input(u, Wt, Bt, Vt, nA, nB, band_a, band_b, ch, succ, heading, px, pw)
+        _sweep_input(u, Wt, Bt, Vt, nA, nB, band_a, band_b, ch, succ, heading, px, pw,
+                     borrowed(words), borrowed(bands))
+    acc = np.empty((nw, nx), dtype=np.uint64)
     n = 0
-    for k in range(Wt.shape[1]):
+    for k in range(npsi):
         n += apply_heading(
             k, level + 1, Wt, nA, nB, band_a, band_b, D1[0], D2[0], band_1[0], band_2[0], ch,
-            lattice, Pt, pads,
+            lattice, Pt, pads, borrowed(acc),
         )  # fmt: skip
     return n
 
@@ -325,18 +342,28 @@ def advance_parallel(
     """
     if level + 1 > (1 << Pt.shape[3]) - 1:
         return -1
-    m = Wt.shape[0]
+    # Borrowed views: the caller holds the arrays for the whole call (hil.core.borrow).
+    Wt, Bt, Vt, nA, nB = borrowed(Wt), borrowed(Bt), borrowed(Vt), borrowed(nA), borrowed(nB)
+    band_a, band_b, ch = borrowed(band_a), borrowed(band_b), borrowed(ch)
+    succ, heading, lattice = borrowed(succ), borrowed(heading), borrowed(lattice)
+    D1, D2, band_1, band_2 = borrowed(D1), borrowed(D2), borrowed(band_1), borrowed(band_2)
+    Pt, pads = borrowed(Pt), borrowed(pads)
+    m, npsi = Wt.shape[0], Wt.shape[1]
+    nw, nx = Bt.shape[2], Bt.shape[3]
     px, pw = pads[0], pads[2]
     for u in prange(m):
-        _sweep_input(u, Wt, Bt, Vt, nA, nB, band_a, band_b, ch, succ, heading, px, pw)
-    npsi = Wt.shape[1]
+        words = box_scratch(nw, Wt.shape[3], nx)
+        bands = np.empty((npsi, 2, 2), dtype=np.int32)
+        _sweep_input(u, Wt, Bt, Vt, nA, nB, band_a, band_b, ch, succ, heading, px, pw,
+                     borrowed(words), borrowed(bands))
     slots = D1.shape[0]
     counts = np.zeros(slots, dtype=np.int64)
     for t in prange(slots):
+        acc = np.empty((nw, nx), dtype=np.uint64)
         for k in range(t, npsi, slots):
             counts[t] += apply_heading(
                 k, level + 1, Wt, nA, nB, band_a, band_b, D1[t], D2[t], band_1[t], band_2[t],
-                ch, lattice, Pt, pads,
+                ch, lattice, Pt, pads, borrowed(acc),
             )  # fmt: skip
     return int(counts.sum())
 

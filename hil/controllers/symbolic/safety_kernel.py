@@ -31,8 +31,14 @@ import numpy as np
 from numba import prange
 from numpy.typing import NDArray
 
-from hil.controllers.symbolic.box_test import box_scratch, box_test, changed_band
+from hil.controllers.symbolic.box_test import (
+    box_scratch,
+    box_test,
+    changed_band,
+    split_box_scratch,
+)
 from hil.core.arrays import U64Array
+from hil.core.borrow import borrowed
 from hil.core.jit import njit, njit_parallel
 
 I32Array = NDArray[np.int32]
@@ -94,17 +100,17 @@ def _test_input(
     heading: I32Array,
     px: int,
     pw: int,
+    words: U64Array,
 ) -> None:
     """Remove from A_u, B_u the states whose box left S_u; set their bands of removed rows.
 
     Reads St[u] and ch[u], writes only input u's entries (inputs may run side by side).
+    words: :func:`box_test.box_scratch`, borrowed.
     """
     npsi = St.shape[1]
     nw = At.shape[2]
     nx = At.shape[3]
-    xp = St.shape[3]
-    H, L, R = box_scratch(nw, xp)
-    out = np.empty((nw, nx), dtype=np.uint64)
+    H, L, R, out, _ = split_box_scratch(words, nw, St.shape[3], nx)
     for k0 in range(npsi):
         for c in range(2):
             band = band_a if c == 0 else band_b
@@ -158,16 +164,17 @@ def _update_heading(
     n_neighbours: I32Array,
     px: int,
     pw: int,
+    scratch: U64Array,
 ) -> int:
     """S_p &= A_p or OR of B_u (u in N(p)) at heading k, on rows some option lost; return rows.
 
-    Writes ch[:, k] and heading k of St only.
+    Writes ch[:, k] and heading k of St only. scratch (2, nx): borrowed.
     """
     m = St.shape[0]
     nw = At.shape[2]
     nx = At.shape[3]
-    keep = np.empty(nx, dtype=np.uint64)
-    rows = np.empty(nx, dtype=np.uint64)
+    keep = scratch[0]
+    rows = scratch[1]
     n_changed = 0
     for p in range(m):
         lo = band_a[p, k, 0]
@@ -230,16 +237,24 @@ def safety_iterate_serial(
 
     -1 when `max_iterations` passed without reaching it (St then still holds S, and more).
     """
-    m = St.shape[0]
-    npsi = St.shape[1]
+    # Borrowed views: the caller holds the arrays for the whole call (hil.core.borrow).
+    St, At, Bt, ch, pads = borrowed(St), borrowed(At), borrowed(Bt), borrowed(ch), borrowed(pads)
+    band_a, band_b = borrowed(band_a), borrowed(band_b)
+    succ, heading = borrowed(succ), borrowed(heading)
+    neighbours, n_neighbours = borrowed(neighbours), borrowed(n_neighbours)
+    m, npsi, nw, nx = At.shape
     px, pw = pads[0], pads[2]
+    words = box_scratch(nw, St.shape[3], nx)
+    rows = np.empty((2, nx), dtype=np.uint64)
     for it in range(max_iterations):
         for u in range(m):
-            _test_input(u, St, At, Bt, band_a, band_b, ch, succ, heading, px, pw)
+            _test_input(u, St, At, Bt, band_a, band_b, ch, succ, heading, px, pw,
+                        borrowed(words))
         n = 0
         for k in range(npsi):
             n += _update_heading(
-                k, St, At, Bt, band_a, band_b, ch, neighbours, n_neighbours, px, pw
+                k, St, At, Bt, band_a, band_b, ch, neighbours, n_neighbours, px, pw,
+                borrowed(rows),
             )
         if n == 0:
             return it + 1
@@ -262,16 +277,24 @@ def safety_iterate_parallel(
     max_iterations: int,
 ) -> int:
     """:func:`safety_iterate_serial` with the inputs' tests and the headings' updates threaded."""
-    m = St.shape[0]
-    npsi = St.shape[1]
+    # Borrowed views: the caller holds the arrays for the whole call (hil.core.borrow).
+    St, At, Bt, ch, pads = borrowed(St), borrowed(At), borrowed(Bt), borrowed(ch), borrowed(pads)
+    band_a, band_b = borrowed(band_a), borrowed(band_b)
+    succ, heading = borrowed(succ), borrowed(heading)
+    neighbours, n_neighbours = borrowed(neighbours), borrowed(n_neighbours)
+    m, npsi, nw, nx = At.shape
     px, pw = pads[0], pads[2]
     counts = np.zeros(npsi, dtype=np.int64)
     for it in range(max_iterations):
         for u in prange(m):
-            _test_input(u, St, At, Bt, band_a, band_b, ch, succ, heading, px, pw)
+            words = box_scratch(nw, St.shape[3], nx)
+            _test_input(u, St, At, Bt, band_a, band_b, ch, succ, heading, px, pw,
+                        borrowed(words))
         for k in prange(npsi):
+            rows = np.empty((2, nx), dtype=np.uint64)
             counts[k] = _update_heading(
-                k, St, At, Bt, band_a, band_b, ch, neighbours, n_neighbours, px, pw
+                k, St, At, Bt, band_a, band_b, ch, neighbours, n_neighbours, px, pw,
+                borrowed(rows),
             )
         if counts.sum() == 0:
             return it + 1

@@ -27,6 +27,7 @@ from hil.controllers.symbolic.abstraction import N_CLASSES, Tables
 from hil.controllers.symbolic.frontier_kernel import shifted
 from hil.controllers.symbolic.kernels import pack_rows
 from hil.core.arrays import BoolArray, U64Array
+from hil.core.borrow import borrowed
 from hil.core.jit import njit, njit_inline, njit_parallel, numba_threads, thread_limit
 
 I32Array = NDArray[np.int32]
@@ -263,11 +264,16 @@ def _all_viable(
     (slots, nw + 2 pw, nx + 2 px) and Fe (slots, layers, nw + 2 pw, nx + 2 px) are zeroed
     scratch, x contiguous; this serial kernel uses slot 0.
     """
+    # Borrowed views: the caller holds the arrays for the whole call (hil.core.borrow).
+    free_words, columns = borrowed(free_words), borrowed(columns)
+    order, starts = borrowed(order), borrowed(starts)
+    tube_x0, tube_n, tube_y = borrowed(tube_x0), borrowed(tube_n), borrowed(tube_y)
+    Fpad, Fe, out = borrowed(Fpad), borrowed(Fe), borrowed(out)
     n_ranges, nx, nw = free_words.shape
     acc = np.empty((nw, nx), dtype=np.uint64)
     for h in range(n_ranges):
         _range_viable(h, free_words, columns, order, starts, tube_x0, tube_n, tube_y, px, pw,
-                      Fpad[0], Fe[0], acc, out)
+                      Fpad[0], Fe[0], borrowed(acc), out)
 
 
 @njit_parallel
@@ -290,13 +296,18 @@ def _all_viable_parallel(
     Each task takes every slots-th range; ranges write disjoint (class, heading, input)
     words.
     """
+    # Borrowed views: the caller holds the arrays for the whole call (hil.core.borrow).
+    free_words, columns = borrowed(free_words), borrowed(columns)
+    order, starts = borrowed(order), borrowed(starts)
+    tube_x0, tube_n, tube_y = borrowed(tube_x0), borrowed(tube_n), borrowed(tube_y)
+    Fpad, Fe, out = borrowed(Fpad), borrowed(Fe), borrowed(out)
     n_ranges, nx, nw = free_words.shape
     slots = Fpad.shape[0]
     for t in prange(slots):
         acc = np.empty((nw, nx), dtype=np.uint64)
         for h in range(t, n_ranges, slots):
             _range_viable(h, free_words, columns, order, starts, tube_x0, tube_n, tube_y,
-                          px, pw, Fpad[t], Fe[t], acc, out)
+                          px, pw, Fpad[t], Fe[t], borrowed(acc), out)
 
 
 def _changed_columns(before: U64Array | None, after: U64Array) -> I32Array:
