@@ -168,7 +168,8 @@ def _update_heading(
 ) -> int:
     """S_p &= A_p or OR of B_u (u in N(p)) at heading k, on rows some option lost; return rows.
 
-    Writes ch[:, k] and heading k of St only. scratch (2, nx): borrowed.
+    Writes ch[:, k] and heading k of St only. scratch (2, nx): the kept words and the lost
+    rows of one x band, borrowed.
     """
     m = St.shape[0]
     nw = At.shape[2]
@@ -245,7 +246,7 @@ def safety_iterate_serial(
     m, npsi, nw, nx = At.shape
     px, pw = pads[0], pads[2]
     words = box_scratch(nw, St.shape[3], nx)
-    rows = np.empty((2, nx), dtype=np.uint64)
+    keep_rows = np.empty((2, nx), dtype=np.uint64)
     for it in range(max_iterations):
         for u in range(m):
             _test_input(u, St, At, Bt, band_a, band_b, ch, succ, heading, px, pw,
@@ -254,7 +255,7 @@ def safety_iterate_serial(
         for k in range(npsi):
             n += _update_heading(
                 k, St, At, Bt, band_a, band_b, ch, neighbours, n_neighbours, px, pw,
-                borrowed(rows),
+                borrowed(keep_rows),
             )
         if n == 0:
             return it + 1
@@ -291,10 +292,10 @@ def safety_iterate_parallel(
             _test_input(u, St, At, Bt, band_a, band_b, ch, succ, heading, px, pw,
                         borrowed(words))
         for k in prange(npsi):
-            rows = np.empty((2, nx), dtype=np.uint64)
+            keep_rows = np.empty((2, nx), dtype=np.uint64)
             counts[k] = _update_heading(
                 k, St, At, Bt, band_a, band_b, ch, neighbours, n_neighbours, px, pw,
-                borrowed(rows),
+                borrowed(keep_rows),
             )
         if counts.sum() == 0:
             return it + 1
